@@ -1,0 +1,1 @@
+"""Accelerometer calibration: the sensor model, static detection, the ellipsoid fit."""

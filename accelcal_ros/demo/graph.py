@@ -1,0 +1,192 @@
+"""
+Run installed node executables as separate processes and talk to them with rclpy.
+
+This is what ``ros2 run``, ``ros2 topic echo``, ``ros2 service call`` and ``ros2 param
+set`` do, in a real DDS graph (no mocked rclpy). Used by the demo (``run-demo``) and by
+the graph tests. Executables are found as ``ros2 run`` finds them: in
+``<prefix>/lib/accelcal_ros`` of the package's install prefix (ament index, i.e. after
+sourcing ``install/setup.bash``), or under ``$ACCELCAL_INSTALL`` when that is set.
+"""
+import json
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import qos_profile_sensor_data
+
+
+def executable(name):
+    """Return the path of the installed node executable ``name`` (clear error if unbuilt)."""
+    if os.environ.get('ACCELCAL_INSTALL'):
+        prefix = os.path.join(os.environ['ACCELCAL_INSTALL'], 'accelcal_ros')
+    else:
+        from ament_index_python.packages import get_package_prefix
+        prefix = get_package_prefix('accelcal_ros')
+    path = os.path.join(prefix, 'lib', 'accelcal_ros', name)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f'{path} not found: run tools/bootstrap.sh (colcon build) '
+                                'and source tools/env.sh')
+    return path
+
+
+def ros_arg_value(value):
+    """Format a parameter value as ``--ros-args -p name:=VALUE`` wants it (YAML)."""
+    return json.dumps(value)
+
+
+class NodeProcess:
+    """One node executable running as its own process; output goes to a log file."""
+
+    def __init__(self, exe, params=None, remaps=None, log_dir='.', name=None, args=()):
+        self.exe = exe
+        self.log_path = os.path.join(str(log_dir), f'{name or exe}.log')
+        cmd = [executable(exe), *args, '--ros-args']
+        for key, value in (params or {}).items():
+            cmd += ['-p', f'{key}:={ros_arg_value(value)}']
+        for src, dst in (remaps or {}).items():
+            cmd += ['-r', f'{src}:={dst}']
+        self._log = open(self.log_path, 'w')
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT,
+                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
+
+    def output(self):
+        """Everything the process printed so far."""
+        self._log.flush()
+        with open(self.log_path) as handle:
+            return handle.read()
+
+    def wait_exit(self, timeout=20.0):
+        """Wait for the process to exit by itself; returns its exit code."""
+        return self.proc.wait(timeout=timeout)
+
+    def stop(self, timeout=10.0):
+        """SIGINT, then SIGKILL if it does not stop; returns the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._log.close()
+        return self.proc.returncode
+
+
+class Graph:
+    """A probe node (own context and executor thread) plus the node processes it started."""
+
+    def __init__(self, log_dir='.', name='probe'):
+        self.log_dir = log_dir
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = False
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+        self.processes = []
+
+    def _spin(self):
+        while not self._stop and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def start(self, exe, params=None, remaps=None, name=None, args=()):
+        """Start an installed executable as a process; it is stopped in :meth:`close`."""
+        proc = NodeProcess(exe, params, remaps, self.log_dir, name, args)
+        self.processes.append(proc)
+        return proc
+
+    def collect(self, msg_type, topic, qos=qos_profile_sensor_data):
+        """Subscribe and collect messages with their receive time: returns a Collector."""
+        return Collector(self.node, msg_type, topic, qos)
+
+    def call(self, srv_type, name, request=None, timeout=10.0):
+        """Call a service (waiting for it to appear); returns the response."""
+        client = self.node.create_client(srv_type, name)
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise TimeoutError(f'service {name} did not appear in {timeout} s')
+            future = client.call_async(request if request is not None else srv_type.Request())
+            deadline = time.monotonic() + timeout
+            while not future.done():
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f'service {name} did not answer in {timeout} s')
+                time.sleep(0.01)
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def set_parameters(self, node_name, values, timeout=10.0):
+        """``ros2 param set``: returns the list of SetParametersResult."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        request = SetParameters.Request()
+        request.parameters = [Parameter(k, value=v).to_parameter_msg()
+                              for k, v in values.items()]
+        return self.call(SetParameters, f'/{node_name}/set_parameters', request,
+                         timeout).results
+
+    def get_parameters(self, node_name, names, timeout=10.0):
+        """``ros2 param get``: returns {name: python value}."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        request = GetParameters.Request()
+        request.names = list(names)
+        response = self.call(GetParameters, f'/{node_name}/get_parameters', request, timeout)
+        return {n: parameter_value_to_python(v) for n, v in zip(names, response.values)}
+
+    def close(self):
+        """Stop every started process and the probe."""
+        for proc in self.processes:
+            proc.stop()
+        self._stop = True
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+class Collector:
+    """Messages of one topic, each with its receive time (time.time())."""
+
+    def __init__(self, node, msg_type, topic, qos):
+        self.messages = []
+        self.receive_times = []
+        self._lock = threading.Lock()
+        self._sub = node.create_subscription(msg_type, topic, self._on_msg, qos)
+
+    def _on_msg(self, msg):
+        with self._lock:
+            self.messages.append(msg)
+            self.receive_times.append(time.time())
+
+    def wait_for(self, count, timeout=10.0):
+        """Wait until at least ``count`` messages arrived; returns a copy of them."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                if len(self.messages) >= count:
+                    return list(self.messages)
+            time.sleep(0.02)
+        with self._lock:
+            got = len(self.messages)
+        raise TimeoutError(f'got {got} of {count} messages in {timeout} s')
+
+    def snapshot(self):
+        """``(messages, receive_times)`` copied."""
+        with self._lock:
+            return list(self.messages), list(self.receive_times)
+
+    def clear(self):
+        """Forget what was collected."""
+        with self._lock:
+            self.messages.clear()
+            self.receive_times.clear()

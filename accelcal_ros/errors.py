@@ -1,0 +1,38 @@
+"""
+Exceptions raised by accelcal_ros.
+
+Every error a user can cause (bad file, bad parameter, bad geometry, bad device) is an
+:class:`AccelcalError`, so command-line tools and nodes can catch one type and show its
+message, which always says what was wrong and, where possible, what to do.
+"""
+
+
+class AccelcalError(Exception):
+    """Base class of all errors this package raises on purpose."""
+
+
+class InputError(AccelcalError, ValueError):
+    """A value given by the user or a message is invalid (NaN, wrong shape, range)."""
+
+
+class FileFormatError(AccelcalError):
+    """A file is missing, truncated or malformed; names the file and, if known, the line."""
+
+    def __init__(self, path, message, line=None):
+        self.path = str(path)
+        self.line = line
+        self.reason = message
+        where = self.path if line is None else f'{self.path}:{line}'
+        super().__init__(f'{where}: {message}')
+
+
+class DeviceError(AccelcalError):
+    """The sensor cannot be reached or is not what it should be (bus, address, ID)."""
+
+
+class CalibrationError(AccelcalError):
+    """A calibration cannot be computed or trusted (too few or badly spread positions)."""
+
+
+class GeometryError(AccelcalError):
+    """A geometric problem is degenerate or has no valid solution."""

@@ -1,0 +1,138 @@
+r"""
+Frame and sign conventions, fixed once for the whole package.
+
+Body frame (REP-103): x forward, y left, z up. Attitude is the fixed-axis roll-pitch-yaw
+rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)`` taking body vectors into the level frame
+(z up). Angles are radians everywhere in code; ``_deg`` in a name says degrees.
+
+Specific force (REP-145): an accelerometer at rest reads the reaction to gravity, i.e.
+``+1 g`` on the axis pointing up. In the body frame at rest,
+
+.. math::  f = R^T [0, 0, 1]^T = [-\sin p,\ \sin r \cos p,\ \cos r \cos p]^T
+
+so that ``roll = atan2(f_y, f_z)`` and ``pitch = atan2(-f_x, \sqrt{f_y^2 + f_z^2})``.
+
+Paper A (Kalinkin et al. 2020, eqs. 2-3) writes ``roll = -atan2(g_y, g_z)`` and
+``pitch = -atan2(g_x, \sqrt{g_y^2 + g_z^2})`` with a level sensor reading ``[0, 0, -1]``:
+its ``g`` is the gravity vector itself, ``g = -f``. Substituting ``g = -f`` turns the
+paper's equations into the REP-103 ones above for ``|roll| < 90 deg`` -- the paper's
+``atan2`` of two negated arguments differs by 180 deg only when the sensor is upside
+down. :func:`paper_gravity_from_specific_force` is the one place where that mapping is
+made; tests check that both formulas agree.
+
+Camera optical frames (REP-103 ``_optical``): z forward, x right, y down. The default
+``imu_to_camera`` rotation is for a camera looking along body +x:
+camera x = -body y, camera y = -body z, camera z = body x.
+"""
+from accelcal_ros.errors import InputError
+import numpy as np
+
+DEFAULT_IMU_TO_CAMERA = np.array([[0.0, -1.0, 0.0],
+                                  [0.0, 0.0, -1.0],
+                                  [1.0, 0.0, 0.0]])
+"""Body (x fwd, y left, z up) -> optical (x right, y down, z fwd), camera along body +x."""
+
+
+def rot_x(angle_rad):
+    """Rotation matrix about x by ``angle_rad`` (right-handed, active)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(angle_rad):
+    """Rotation matrix about y by ``angle_rad`` (right-handed, active)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(angle_rad):
+    """Rotation matrix about z by ``angle_rad`` (right-handed, active)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_from_rpy_radians(roll, pitch, yaw=0.0):
+    """Body-to-level rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (REP-103 fixed axes)."""
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def rpy_radians_from_rotation(rotation):
+    """Inverse of :func:`rotation_from_rpy_radians`: ``(roll, pitch, yaw)`` in radians."""
+    r = np.asarray(rotation, dtype=float)
+    pitch = np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2]))
+    roll = np.arctan2(r[2, 1], r[2, 2])
+    yaw = np.arctan2(r[1, 0], r[0, 0])
+    return float(roll), float(pitch), float(yaw)
+
+
+def specific_force_from_roll_pitch(roll, pitch):
+    """
+    Return the unit specific force in the body frame at rest (REP-145, +z up when level).
+
+    Vectorised: ``roll`` and ``pitch`` (radians) may be arrays; returns ``(..., 3)``.
+    """
+    roll = np.asarray(roll, dtype=float)
+    pitch = np.asarray(pitch, dtype=float)
+    return np.stack([-np.sin(pitch),
+                     np.sin(roll) * np.cos(pitch),
+                     np.cos(roll) * np.cos(pitch)], axis=-1)
+
+
+def roll_pitch_from_specific_force(force):
+    """
+    Roll and pitch (radians) from specific force ``(..., 3)`` in any consistent unit.
+
+    ``roll = atan2(f_y, f_z)``, ``pitch = atan2(-f_x, sqrt(f_y^2 + f_z^2))``. Pitch is
+    finite everywhere (``atan2`` of a non-negative second argument); at pitch = +-90 deg
+    roll is undefined and comes out as ``atan2(0, 0) = 0`` -- never NaN.
+    """
+    f = np.asarray(force, dtype=float)
+    roll = np.arctan2(f[..., 1], f[..., 2])
+    pitch = np.arctan2(-f[..., 0], np.hypot(f[..., 1], f[..., 2]))
+    return roll, pitch
+
+
+def paper_gravity_from_specific_force(force):
+    """Paper A's measured vector ``g`` (level sensor reads [0, 0, -1]) from ``f``: ``g = -f``."""
+    return -np.asarray(force, dtype=float)
+
+
+def paper_roll_pitch(gravity):
+    """
+    Paper A eqs. (2)-(3) applied to its own ``g`` (level reads [0, 0, -1]).
+
+    ``roll = -atan2(g_y, g_z)`` and ``pitch = -atan2(g_x, sqrt(g_y^2 + g_z^2))``. Kept so
+    the paper's worked examples can be recomputed literally; everything else in this
+    package uses :func:`roll_pitch_from_specific_force`.
+    """
+    g = np.asarray(gravity, dtype=float)
+    roll = -np.arctan2(g[..., 1], g[..., 2])
+    pitch = -np.arctan2(g[..., 0], np.hypot(g[..., 1], g[..., 2]))
+    return roll, pitch
+
+
+def down_in_camera(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+    """Return the unit gravity direction ("down") in the camera frame from roll/pitch."""
+    down_body = -specific_force_from_roll_pitch(roll, pitch)
+    return np.asarray(imu_to_camera, dtype=float) @ down_body
+
+
+def rotation_matrix_from_list(values, name='rotation', tolerance=1e-6):
+    """
+    3x3 rotation from 9 row-major numbers; raises :class:`InputError` if not a rotation.
+
+    Accepts a small deviation (``tolerance`` on ``R R^T - I`` and on ``det R - 1``) so that
+    values written with limited precision still load; the result is re-orthonormalised.
+    """
+    arr = np.asarray(values, dtype=float)
+    if arr.size != 9:
+        raise InputError(f'{name}: expected 9 row-major values, got {arr.size}')
+    r = arr.reshape(3, 3)
+    if not np.all(np.isfinite(r)):
+        raise InputError(f'{name}: contains NaN or infinity')
+    if (np.abs(r @ r.T - np.eye(3)).max() > tolerance
+            or abs(np.linalg.det(r) - 1.0) > tolerance):
+        raise InputError(f'{name}: not a rotation matrix (R R^T != I or det R != 1, '
+                         f'det = {np.linalg.det(r):.6g})')
+    u, _, vt = np.linalg.svd(r)
+    return u @ vt

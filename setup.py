@@ -1,0 +1,37 @@
+"""Build script of the accelcal_ros ament_python package."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'accelcal_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', sorted(glob('config/*'))),
+        ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='accelcal_ros developers',
+    maintainer_email='dev@accelcal.invalid',
+    description='ADXL345 field calibration, attitude, panorama, P2P and LiDAR boresight.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'imu_driver = accelcal_ros.driver.node:main',
+            'calibration = accelcal_ros.calibration.node:main',
+            'attitude = accelcal_ros.attitude.node:main',
+            'stitcher = accelcal_ros.panorama.node:main',
+            'p2p = accelcal_ros.p2p.node:main',
+            'lidar_calibration = accelcal_ros.lidar.calibration_node:main',
+            'cloud_assembler = accelcal_ros.lidar.assembler_node:main',
+            'accelcal = accelcal_ros.cli:main',
+        ],
+    },
+)

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Set up (or reuse) a local environment and build the package with colcon.
+#   tools/bootstrap.sh [latest|apt]
+# latest: .venv with the newest numpy/scipy/OpenCV, build into build/ and install/.
+# apt:    .venv-apt with Ubuntu 24.04's versions (numpy 1.26, scipy 1.11, OpenCV 4.6),
+#         build into build-apt/ and install-apt/.
+# A second run reuses what is there: pip runs only when a requirements file changed,
+# colcon only when packaging files or the module list changed.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+profile="${1:-latest}"
+case "$profile" in
+  latest) venv="$root/.venv"; build="$root/build"; install="$root/install" ;;
+  apt) venv="$root/.venv-apt"; build="$root/build-apt"; install="$root/install-apt" ;;
+  *) echo "bootstrap: unknown profile '$profile' (latest or apt)" >&2; exit 2 ;;
+esac
+cd "$root"
+exec 9>"$root/.bootstrap-$profile.lock"
+flock 9
+
+python="${PYTHON:-python3}"
+if ! "$python" -c 'import sys; sys.exit(0 if sys.version_info[:2] >= (3, 10) else 1)'; then
+  echo "bootstrap: need Python >= 3.10 (ROS 2 Jazzy wheels are built for 3.11/3.12)" >&2
+  exit 2
+fi
+req_hash=$(cat tools/requirements-ros.txt "tools/requirements-$profile.txt" | sha256sum | cut -c1-16)
+if [ ! -f "$venv/.accelcal-req" ] || [ "$(cat "$venv/.accelcal-req")" != "$req_hash" ]; then
+  echo "bootstrap: creating $venv (ROS 2 Jazzy wheels, colcon, $profile numeric stack)"
+  if ! "$python" -m venv --clear "$venv" 2>/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+      apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
+      "$python" -m venv --clear "$venv"
+    else
+      echo "bootstrap: '$python -m venv' failed; install python3-venv" >&2; exit 2
+    fi
+  fi
+  # (this machine's pip configuration names local indexes that may be absent: quiet them)
+  "$venv/bin/python" -m pip install -q --upgrade pip 2>&1 | grep -v '^WARNING: Location' || true
+  "$venv/bin/python" -m pip install -q -r tools/requirements-ros.txt \
+      -r "tools/requirements-$profile.txt" 2>&1 | grep -v '^WARNING: Location' || true
+  "$venv/bin/python" -c 'import rclpy, numpy, scipy, cv2, yaml, smbus2, colcon_core' || {
+    echo "bootstrap: installing into $venv failed (see pip's messages above)" >&2; exit 1; }
+  touch "$venv/COLCON_IGNORE"
+  echo "$req_hash" > "$venv/.accelcal-req"
+fi
+
+# colcon: rebuild only when what it installs changed (sources are symlinked).
+build_hash=$( { cat setup.py setup.cfg package.xml; ls config launch resource;
+                find accelcal_ros -name '*.py' | sort; } | sha256sum | cut -c1-16)
+if [ ! -f "$install/.accelcal-build" ] || [ "$(cat "$install/.accelcal-build")" != "$build_hash" ]; then
+  echo "bootstrap: colcon build ($profile)"
+  ( source "$venv/bin/activate"
+    colcon --log-base "$root/log" build --paths "$root" --symlink-install \
+        --build-base "$build" --install-base "$install" \
+        --event-handlers console_cohesion- summary- >/dev/null ) || {
+    echo "bootstrap: colcon build failed; see $root/log/latest_build" >&2; exit 1; }
+  echo "$build_hash" > "$install/.accelcal-build"
+fi
