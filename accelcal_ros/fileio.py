@@ -7,6 +7,7 @@ is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX).
 """
 import csv
 import io
+import math
 import os
 import tempfile
 
@@ -91,13 +92,14 @@ def dump_yaml(data):
     return yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False)
 
 
-def read_numeric_csv(path, required, optional=()):
+def read_numeric_csv(path, required, optional=(), finite=False, increasing=None):
     """
     Read a CSV with a header into a dict of float arrays; errors name file and line.
 
     ``required`` columns must all be present; ``optional`` ones are returned if present.
-    Every row must have as many fields as the header and only finite-or-NaN numbers;
-    a short last row (truncated file) is reported with its line number.
+    Every row must have as many fields as the header and only numbers; a short last row
+    (truncated file) is reported with its line number. With ``finite=True`` a NaN or
+    infinity is an error; ``increasing='t'`` requires column ``t`` to increase strictly.
     """
     import numpy as np
 
@@ -126,8 +128,16 @@ def read_numeric_csv(path, required, optional=()):
                 raise FileFormatError(path, f'expected {len(header)} fields, got {len(row)} '
                                       '(truncated or malformed line)', line)
             try:
-                rows.append([float(row[i]) for i in index])
+                values = [float(row[i]) for i in index]
             except ValueError:
                 raise FileFormatError(path, f'non-numeric value in {row!r}', line) from None
+            if finite and not all(math.isfinite(v) for v in values):
+                raise FileFormatError(path, f'NaN or infinite value in {row!r}', line)
+            if increasing is not None and rows:
+                k = wanted.index(increasing)
+                if not values[k] > rows[-1][k]:
+                    raise FileFormatError(path, f'column {increasing} must increase strictly '
+                                          f'({values[k]!r} after {rows[-1][k]!r})', line)
+            rows.append(values)
     data = np.array(rows, dtype=float).reshape(-1, len(wanted))
     return {name: data[:, k] for k, name in enumerate(wanted)}

@@ -16,7 +16,7 @@ from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import specific_force_from_roll_pitch
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 FULL_RES_G_PER_LSB = 0.0039
 """ADXL345 full-resolution scale factor, 3.9 mg/LSB (datasheet typical)."""
@@ -95,25 +95,24 @@ class SimulatedAdxl345:
         return np.where(phase < self.dwell_s, index, -1)
 
     def attitude_at(self, t):
-        """Return the true (roll, pitch) in radians at times ``t`` (s); arrays of ``t``'s shape."""
+        """
+        Return the true (roll, pitch) in radians at times ``t`` (s), arrays of ``t``'s shape.
+
+        Dwell: the pose's attitude. Move: ``R(u) = R_a exp(u log(R_a^T R_b))`` (slerp) with
+        the smoothstep profile ``u = 3w^2 - 2w^3`` of the elapsed fraction ``w``.
+        """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         n = len(self.poses_deg)
         cycle = np.floor_divide(t, self.period_s).astype(int)
         phase = t - cycle * self.period_s
         start = cycle % n
         end = (start + 1) % n
-        moving = phase > self.dwell_s
-        u = np.where(moving, (phase - self.dwell_s) / max(self.move_s, 1e-12), 0.0)
-        u = u * u * (3.0 - 2.0 * u)  # smoothstep: zero angular rate at both ends
-        rotations = []
-        for s, e, w in zip(start, end, u):
-            if w == 0.0:
-                rotations.append(self._rotations[s])
-            else:
-                slerp = Slerp([0.0, 1.0], Rotation.concatenate(
-                    [self._rotations[s], self._rotations[e]]))
-                rotations.append(slerp([w])[0])
-        euler = Rotation.concatenate(rotations).as_euler('xyz')
+        w = np.clip((phase - self.dwell_s) / max(self.move_s, 1e-12), 0.0, 1.0)
+        u = w * w * (3.0 - 2.0 * w)
+        rot_start = self._rotations[start]
+        delta = (rot_start.inv() * self._rotations[end]).as_rotvec()
+        rotation = rot_start * Rotation.from_rotvec(u[:, None] * delta)
+        euler = rotation.as_euler('xyz')
         return euler[:, 0], euler[:, 1]
 
     def true_specific_force(self, t):
@@ -123,13 +122,17 @@ class SimulatedAdxl345:
 
     def read(self, t):
         """
-        Raw readings in g at times ``t`` (s): model, noise, 3.9 mg quantisation, clipping.
+        Return raw readings in g at times ``t`` (s): model, noise, quantisation, clipping.
 
         Draws noise in order from the seeded generator: call with increasing times.
         """
-        force = self.true_specific_force(t)
-        raw = self.truth.distort(force)
+        return self.read_with_truth(t)[0]
+
+    def read_with_truth(self, t):
+        """Return ``(readings (N, 3) g, roll (N,) rad, pitch (N,) rad)`` at times ``t``."""
+        roll, pitch = self.attitude_at(t)
+        raw = self.truth.distort(specific_force_from_roll_pitch(roll, pitch))
         raw = raw + self._rng.standard_normal(raw.shape) * self.noise_std_g
         counts = np.round(raw / FULL_RES_G_PER_LSB)
         limit = self.range_g / FULL_RES_G_PER_LSB
-        return np.clip(counts, -limit, limit - 1) * FULL_RES_G_PER_LSB
+        return np.clip(counts, -limit, limit - 1) * FULL_RES_G_PER_LSB, roll, pitch

@@ -10,6 +10,7 @@ with the reason.
 from accelcal_ros.errors import InputError
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
+from rclpy.parameter import Parameter
 
 _TYPES = {
     'bool': ParameterType.PARAMETER_BOOL,
@@ -21,6 +22,12 @@ _TYPES = {
     'string_array': ParameterType.PARAMETER_STRING_ARRAY,
 }
 
+_EMPTY_TYPES = {
+    'double_array': Parameter.Type.DOUBLE_ARRAY,
+    'int_array': Parameter.Type.INTEGER_ARRAY,
+    'string_array': Parameter.Type.STRING_ARRAY,
+}
+
 
 def descriptor_for(spec):
     """Build the ParameterDescriptor of one spec."""
@@ -28,7 +35,9 @@ def descriptor_for(spec):
         name=spec.name, type=_TYPES[spec.kind], description=spec.description,
         additional_constraints=spec.constraints_text(), read_only=spec.read_only,
         # ints are accepted for doubles (``-p fov:=180``); ParamSpec.check enforces kinds.
-        dynamic_typing=spec.kind in ('double', 'double_array'))
+        # (not for empty-list defaults, which must be declared by type instead)
+        dynamic_typing=spec.kind == 'double' or (spec.kind == 'double_array'
+                                                  and bool(spec.default)))
     if spec.kind in ('double', 'double_array') and spec.minimum is not None \
             and spec.maximum is not None:
         descriptor.floating_point_range = [FloatingPointRange(
@@ -56,7 +65,8 @@ class ParameterSet:
         reasons = []
         for spec in specs:
             if spec.kind.endswith('_array') and not spec.default:
-                param = node.declare_parameter(spec.name, _TYPES[spec.kind],
+                # an empty list has no type: declare by type (value stays unset if not given)
+                param = node.declare_parameter(spec.name, _EMPTY_TYPES[spec.kind],
                                                descriptor_for(spec))
                 raw = param.value if param.value is not None else []
             else:

@@ -1,0 +1,148 @@
+"""
+ADXL345 over I2C: device check, configuration, single and FIFO reads (pure, no ROS).
+
+The bus is any object with smbus2's methods ``read_byte_data``,
+``write_byte_data`` and ``read_i2c_block_data`` (``smbus2.SMBus`` on hardware,
+:class:`~accelcal_ros.driver.register_sim.SimulatedAdxl345Bus` in tests). Readings are
+returned in g (sensor frame as marked on the chip; the node maps nothing: mount the
+sensor with x forward, y left, z up or set ``frame_id`` to its real frame).
+
+Reading strategy: below ``fifo_threshold_hz`` the driver reads the six data registers
+once per sample (bypass mode). Above it, a Python loop cannot reliably poll every
+sample, so the FIFO runs in stream mode and each poll drains every queued entry (up to
+32, i.e. 10 ms at 3200 Hz); the entries get evenly spaced stamps ending at the read
+time (:class:`FifoTimestamper`). An overrun (INT_SOURCE.Overrun) means samples were
+lost; it is counted and reported, never papered over.
+"""
+import errno
+import os
+import struct
+
+from accelcal_ros.driver import adxl345_registers as reg
+from accelcal_ros.driver.sim_sensor import FULL_RES_G_PER_LSB
+from accelcal_ros.errors import DeviceError, InputError
+import numpy as np
+
+
+def open_smbus(bus_number):
+    """Open ``/dev/i2c-<bus_number>`` with smbus2; DeviceError with a hint if impossible."""
+    path = f'/dev/i2c-{bus_number}'
+    if not os.path.exists(path):
+        raise DeviceError(f'I2C bus {bus_number}: {path} does not exist (is the I2C interface '
+                          'enabled, e.g. dtparam=i2c_arm=on on a Raspberry Pi, and the bus '
+                          'number right? see `ls /dev/i2c-*`)')
+    try:
+        import smbus2
+    except ImportError as exc:
+        raise DeviceError('the i2c backend needs smbus2 (apt: python3-smbus2, '
+                          'pip: smbus2)') from exc
+    try:
+        return smbus2.SMBus(bus_number)
+    except OSError as exc:
+        raise DeviceError(f'I2C bus {bus_number}: cannot open {path}: {exc.strerror} '
+                          '(permissions? add the user to the i2c group)') from exc
+
+
+class Adxl345:
+    """One ADXL345 on an smbus2-like ``bus`` at ``address``."""
+
+    def __init__(self, bus, address=0x53, bus_number=None):
+        if address not in reg.VALID_ADDRESSES:
+            raise InputError(f'i2c_address 0x{address:02X} is not an ADXL345 address '
+                             f'(0x53 with ALT ADDRESS low, 0x1D with it high)')
+        self.bus = bus
+        self.address = address
+        self.bus_number = bus_number
+        self.rate_hz = None
+        self.range_g = None
+        self.fifo = False
+
+    def _where(self):
+        bus = '?' if self.bus_number is None else self.bus_number
+        return f'I2C bus {bus}, address 0x{self.address:02X}'
+
+    def check_device_id(self):
+        """Read DEVID; DeviceError naming bus, address and the value read unless 0xE5."""
+        try:
+            value = self.bus.read_byte_data(self.address, reg.DEVID)
+        except OSError as exc:
+            hint = ('no device answered' if exc.errno in (errno.ENXIO, errno.EREMOTEIO)
+                    else exc.strerror or str(exc))
+            raise DeviceError(f'{self._where()}: cannot read DEVID ({hint}); check wiring, '
+                              'power and the address (0x53 or 0x1D)') from exc
+        if value != reg.DEVID_VALUE:
+            raise DeviceError(f'{self._where()}: DEVID read 0x{value:02X}, expected 0xE5 '
+                              '(not an ADXL345, or another device at this address)')
+        return value
+
+    def configure(self, rate_hz, range_g, fifo):
+        """Set output data rate, range (full resolution), FIFO mode, and start measuring."""
+        if float(rate_hz) not in reg.RATE_CODES:
+            raise InputError(f'rate_hz {rate_hz} is not an ADXL345 output data rate '
+                             f'({", ".join(f"{r:g}" for r in sorted(reg.RATE_CODES))})')
+        if range_g not in reg.RANGE_CODES:
+            raise InputError(f'range_g {range_g} is not one of 2, 4, 8, 16')
+        write = self.bus.write_byte_data
+        write(self.address, reg.POWER_CTL, 0x00)  # standby while configuring
+        write(self.address, reg.BW_RATE, reg.RATE_CODES[float(rate_hz)])
+        write(self.address, reg.DATA_FORMAT,
+              reg.DATA_FORMAT_FULL_RES | reg.RANGE_CODES[range_g])
+        write(self.address, reg.FIFO_CTL,
+              (reg.FIFO_MODE_STREAM | 16) if fifo else reg.FIFO_MODE_BYPASS)
+        write(self.address, reg.POWER_CTL, reg.POWER_CTL_MEASURE)
+        self.rate_hz, self.range_g, self.fifo = float(rate_hz), range_g, fifo
+
+    def read_sample(self):
+        """Read x, y, z (g) in one 6-byte block (little-endian int16, 3.9 mg/LSB)."""
+        data = self.bus.read_i2c_block_data(self.address, reg.DATAX0, 6)
+        return np.array(struct.unpack('<3h', bytes(data)), dtype=float) * FULL_RES_G_PER_LSB
+
+    def fifo_entries(self):
+        """Return the number of samples waiting in the FIFO (FIFO_STATUS bits 5:0)."""
+        return self.bus.read_byte_data(self.address, reg.FIFO_STATUS) & reg.FIFO_ENTRIES_MASK
+
+    def overrun(self):
+        """Return True if the FIFO overran since the last check (INT_SOURCE.Overrun)."""
+        return bool(self.bus.read_byte_data(self.address, reg.INT_SOURCE)
+                    & reg.INT_SOURCE_OVERRUN)
+
+    def read_fifo(self):
+        """
+        Drain the FIFO: returns ``(samples (N, 3) in g, overrun flag)``.
+
+        Each entry is one 6-byte block read, which pops it (datasheet, FIFO section).
+        An I/O error mid-drain raises OSError; entries read before it are not returned, so
+        a partly read batch is never published with made-up stamps.
+        """
+        overrun = self.overrun()
+        count = self.fifo_entries()
+        samples = np.empty((count, 3))
+        for k in range(count):
+            samples[k] = self.read_sample()
+        return samples, overrun
+
+
+class FifoTimestamper:
+    """
+    Evenly spaced stamps for FIFO batches at a nominal rate.
+
+    A batch of ``n`` samples read at time ``t_read`` gets stamps
+    ``t_read - (n - 1 - k) / rate``; a stamp is never earlier than the previous batch's
+    last stamp plus one period (the batches stay monotonic and evenly spaced even when the
+    poll time jitters).
+    """
+
+    def __init__(self, rate_hz):
+        self.period = 1.0 / rate_hz
+        self.last = None
+
+    def stamps(self, count, t_read):
+        """Return evenly spaced times (s) for ``count`` samples read at ``t_read``."""
+        if count == 0:
+            return np.empty(0)
+        first = t_read - (count - 1) * self.period
+        if self.last is not None:
+            first = max(first, self.last + self.period)
+        out = first + np.arange(count) * self.period
+        self.last = out[-1]
+        return out

@@ -1,0 +1,211 @@
+"""
+Sample sources behind the driver node: simulated sensor, ADXL345 over I2C, CSV replay.
+
+Every source has the same polling interface (pure, no ROS):
+
+- ``start()``: open/configure; raises :class:`~accelcal_ros.errors.DeviceError` etc.
+- ``next_poll_time()``: wall-clock time (s) at which ``poll()`` should next be called.
+- ``poll()``: returns a :class:`Batch` of the samples that became available, stamped in
+  wall-clock seconds (``time.time()`` base). A source never invents a sample: an I/O
+  error yields an empty batch, counted in :class:`SourceStats`.
+- ``stats``: counters for diagnostics.
+"""
+from dataclasses import dataclass, field
+import time
+from typing import Optional
+
+from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
+from accelcal_ros.driver.replay import load_recording, mps2_to_g
+import numpy as np
+
+
+@dataclass
+class Batch:
+    """Samples in g with wall-clock stamps; ``truth_rp`` (rad) only from the simulator."""
+
+    stamps: np.ndarray
+    samples_g: np.ndarray
+    truth_rp: Optional[np.ndarray] = None
+
+    @classmethod
+    def empty(cls):
+        """Return a batch without samples."""
+        return cls(np.empty(0), np.empty((0, 3)))
+
+    def __len__(self):
+        """Return the number of samples."""
+        return len(self.stamps)
+
+
+@dataclass
+class SourceStats:
+    """Counters reported in diagnostics."""
+
+    samples: int = 0
+    io_errors: int = 0
+    consecutive_errors: int = 0
+    fifo_overruns: int = 0
+    last_error: str = ''
+    finished: bool = False
+    extra: dict = field(default_factory=dict)
+
+
+class SimSource:
+    """
+    Samples of a :class:`~accelcal_ros.driver.sim_sensor.SimulatedAdxl345` in real time.
+
+    Sample ``k`` is due at ``t0 + k / rate`` and carries the simulator's state at
+    ``k / rate`` seconds of simulated time. ``max_batch_period_s`` groups samples at high
+    rates (at 3200 Hz a poll every 1 ms publishes about three samples).
+    """
+
+    def __init__(self, sensor, clock=time.time, max_batch_period_s=0.001):
+        self.sensor = sensor
+        self.clock = clock
+        self.period = 1.0 / sensor.rate_hz
+        self.poll_period = max(self.period, max_batch_period_s)
+        self.stats = SourceStats()
+        self._t0 = None
+        self._last_poll = None
+        self._next = 0
+
+    def start(self):
+        """Start the simulated clock now."""
+        self._t0 = self.clock()
+        self._last_poll = self._t0 - self.poll_period
+        self._next = 0
+
+    def next_poll_time(self):
+        """Return when the next sample (or group of samples) is due."""
+        return max(self._t0 + self._next * self.period, self._last_poll + self.poll_period)
+
+    def poll(self):
+        """Return every sample due by now."""
+        self._last_poll = self.clock()
+        due = int(np.floor((self._last_poll - self._t0) / self.period)) + 1
+        if due <= self._next:
+            return Batch.empty()
+        sim_t = np.arange(self._next, due) * self.period
+        self._next = due
+        samples, roll, pitch = self.sensor.read_with_truth(sim_t)
+        self.stats.samples += len(sim_t)
+        return Batch(self._t0 + sim_t, samples, np.stack([roll, pitch], axis=1))
+
+
+class I2cSource:
+    """
+    An ADXL345 on I2C, read per sample (bypass) or by draining the FIFO (stream).
+
+    On an I/O error the source backs off exponentially (``min_backoff_s`` doubling up to
+    ``max_backoff_s``), counts the error and returns nothing for that poll; it never
+    fabricates a sample. FIFO overruns (samples lost while the bus was unavailable or the
+    host too slow) are counted.
+    """
+
+    def __init__(self, device, rate_hz, range_g, use_fifo, clock=time.time,
+                 min_backoff_s=0.002, max_backoff_s=0.5):
+        self.device = device
+        self.rate_hz = float(rate_hz)
+        self.range_g = range_g
+        self.use_fifo = use_fifo
+        self.clock = clock
+        self.min_backoff_s = min_backoff_s
+        self.max_backoff_s = max_backoff_s
+        self.period = 1.0 / self.rate_hz
+        # drain at a quarter of the FIFO's 32 entries, at least every 20 ms
+        self.poll_period = min(8 * self.period, 0.02) if use_fifo else self.period
+        self.stats = SourceStats()
+        self._stamper = FifoTimestamper(self.rate_hz)
+        self._next_poll = None
+        self._backoff = 0.0
+
+    @classmethod
+    def from_bus_number(cls, bus_number, address, rate_hz, range_g, use_fifo, **kwargs):
+        """Open ``/dev/i2c-<bus_number>`` and wrap the ADXL345 at ``address``."""
+        bus = open_smbus(bus_number)
+        return cls(Adxl345(bus, address, bus_number), rate_hz, range_g, use_fifo, **kwargs)
+
+    def start(self):
+        """Check DEVID and configure the device (DeviceError if it is not an ADXL345)."""
+        self.device.check_device_id()
+        self.device.configure(self.rate_hz, self.range_g, self.use_fifo)
+        self._next_poll = self.clock() + self.period
+
+    def next_poll_time(self):
+        """Return when to poll next (later while backing off after errors)."""
+        return self._next_poll
+
+    def poll(self):
+        """Read what is available; an I/O error gives an empty batch and a back-off."""
+        now = self.clock()
+        try:
+            if self.use_fifo:
+                samples, overrun = self.device.read_fifo()
+                if overrun:
+                    self.stats.fifo_overruns += 1
+                    self._stamper.last = None  # samples were lost: restart the stamp chain
+            else:
+                samples = self.device.read_sample()[None, :]
+        except OSError as exc:
+            self.stats.io_errors += 1
+            self.stats.consecutive_errors += 1
+            self.stats.last_error = f'{exc.strerror or exc} (errno {exc.errno})'
+            self._backoff = min(max(2 * self._backoff, self.min_backoff_s), self.max_backoff_s)
+            self._next_poll = now + self._backoff
+            return Batch.empty()
+        self._backoff = 0.0
+        self.stats.consecutive_errors = 0
+        t_read = self.clock()
+        stamps = self._stamper.stamps(len(samples), t_read) if self.use_fifo \
+            else np.array([t_read])
+        self.stats.samples += len(samples)
+        self._next_poll = max(self._next_poll + self.poll_period, now)
+        return Batch(stamps, samples)
+
+
+class ReplaySource:
+    """
+    A recording (``t,ax,ay,az``; s, m/s^2) replayed with its timing or at full speed.
+
+    Stamps keep the recorded spacing, shifted to start at the replay's start time.
+    """
+
+    def __init__(self, path, realtime=True, clock=time.time, chunk=500):
+        self.t, accel = load_recording(path)
+        self.samples_g = mps2_to_g(accel)
+        self.realtime = realtime
+        self.clock = clock
+        self.chunk = chunk
+        self.stats = SourceStats()
+        self._t0 = None
+        self._next = 0
+
+    def start(self):
+        """Start replaying now."""
+        self._t0 = self.clock()
+        self._next = 0
+
+    def next_poll_time(self):
+        """Return when the next recorded sample is due (now when not in real time)."""
+        if self._next >= len(self.t):
+            return self.clock() + 0.1
+        if not self.realtime:
+            return self.clock()
+        return self._t0 + (self.t[self._next] - self.t[0])
+
+    def poll(self):
+        """Return the next recorded samples that are due."""
+        if self._next >= len(self.t):
+            self.stats.finished = True
+            return Batch.empty()
+        if self.realtime:
+            elapsed = self.clock() - self._t0
+            end = int(np.searchsorted(self.t - self.t[0], elapsed, side='right'))
+        else:
+            end = min(self._next + self.chunk, len(self.t))
+        start, self._next = self._next, max(end, self._next)
+        if self._next >= len(self.t):
+            self.stats.finished = True
+        self.stats.samples += self._next - start
+        return Batch(self._t0 + self.t[start:self._next] - self.t[0],
+                     self.samples_g[start:self._next])
