@@ -13,12 +13,20 @@ Specific force (REP-145): an accelerometer at rest reads the reaction to gravity
 so that ``roll = atan2(f_y, f_z)`` and ``pitch = atan2(-f_x, \sqrt{f_y^2 + f_z^2})``.
 
 Paper A (Kalinkin et al. 2020, eqs. 2-3) writes ``roll = -atan2(g_y, g_z)`` and
-``pitch = -atan2(g_x, \sqrt{g_y^2 + g_z^2})`` with a level sensor reading ``[0, 0, -1]``:
-its ``g`` is the gravity vector itself, ``g = -f``. Substituting ``g = -f`` turns the
-paper's equations into the REP-103 ones above for ``|roll| < 90 deg`` -- the paper's
-``atan2`` of two negated arguments differs by 180 deg only when the sensor is upside
-down. :func:`paper_gravity_from_specific_force` is the one place where that mapping is
-made; tests check that both formulas agree.
+``pitch = -atan2(g_x, \sqrt{g_y^2 + g_z^2})``, while its worked example treats a level
+sensor as reading ``g = [0, 0, -1]`` (the gravity vector, ``g = -f``). The two do not
+agree: eq. (2) on ``[0, 0, -1]`` gives a roll of 180 deg. What holds, and is tested
+(``test/test_frames.py``):
+
+- fed with the specific force ``f`` (level reads ``[0, 0, +1]``), eq. (3) is exactly the
+  REP-103 pitch and eq. (2) is minus the REP-103 roll (the paper counts roll positive
+  left side down);
+- the worked example only uses pitch, whose magnitude is the same for ``g`` and ``-g``.
+
+Decision: the package computes attitude only with
+:func:`roll_pitch_from_specific_force` (REP-103). :func:`paper_roll_pitch` keeps eqs.
+(2)-(3) literally for recomputing the paper's numbers, and
+:func:`rep103_from_paper_roll_pitch` is the one place that maps the paper's angles.
 
 Camera optical frames (REP-103 ``_optical``): z forward, x right, y down. The default
 ``imu_to_camera`` rotation is for a camera looking along body +x:
@@ -92,6 +100,11 @@ def roll_pitch_from_specific_force(force):
     return roll, pitch
 
 
+def rep103_from_paper_roll_pitch(roll_paper, pitch_paper):
+    """Map paper A's eqs. (2)-(3) angles (computed on ``f``) to REP-103: ``(-roll, pitch)``."""
+    return -np.asarray(roll_paper, dtype=float), np.asarray(pitch_paper, dtype=float)
+
+
 def paper_gravity_from_specific_force(force):
     """Paper A's measured vector ``g`` (level sensor reads [0, 0, -1]) from ``f``: ``g = -f``."""
     return -np.asarray(force, dtype=float)
@@ -99,11 +112,12 @@ def paper_gravity_from_specific_force(force):
 
 def paper_roll_pitch(gravity):
     """
-    Paper A eqs. (2)-(3) applied to its own ``g`` (level reads [0, 0, -1]).
+    Apply paper A eqs. (2)-(3) literally to a measured vector.
 
     ``roll = -atan2(g_y, g_z)`` and ``pitch = -atan2(g_x, sqrt(g_y^2 + g_z^2))``. Kept so
-    the paper's worked examples can be recomputed literally; everything else in this
-    package uses :func:`roll_pitch_from_specific_force`.
+    the paper's worked examples can be recomputed literally (see the module docstring
+    for how its conventions relate to REP-103); everything else in this package uses
+    :func:`roll_pitch_from_specific_force`.
     """
     g = np.asarray(gravity, dtype=float)
     roll = -np.arctan2(g[..., 1], g[..., 2])

@@ -60,9 +60,7 @@ class SimulatedAdxl345Bus:
         if not self._measuring():
             return
         now = self.clock()
-        if self._start is None:
-            self._start = now
-        due = int((now - self._start) * self._rate())
+        due = int((now - self._start) * self._rate() + 1e-9)
         if due <= self.generated:
             return
         times = (np.arange(self.generated, due) + 1) / self._rate()
@@ -113,8 +111,8 @@ class SimulatedAdxl345Bus:
         self.registers[register] = value & 0xFF
         if register == reg.FIFO_CTL and not self._stream():
             self.fifo.clear()
-        if register == reg.POWER_CTL and not self._measuring():
-            self._start = None
+        if register == reg.POWER_CTL:
+            self._start = self.clock() if self._measuring() else None
             self.generated = 0
 
     def read_i2c_block_data(self, address, register, length):

@@ -8,8 +8,10 @@ turns smoothly in ``move_s`` to the next (slerp with a smoothstep profile), cycl
 
 Noise (ADXL345 datasheet, Rev. G, Table 1): 0.75 LSB rms on x and y, 1.1 LSB rms on z at
 100 Hz output data rate, with 3.9 mg/LSB in full resolution, i.e. 2.9 mg and 4.3 mg.
-White noise over a bandwidth of ODR/2 scales with ``sqrt(ODR / 100 Hz)``.
-Readings are quantised to the full-resolution LSB (3.9 mg) and clipped to +-range.
+White noise over a bandwidth of ODR/2 scales with ``sqrt(ODR / 100 Hz)``. The datasheet
+figure is the noise of the quantised output, so the analog noise drawn before
+quantisation has variance ``sigma^2 - LSB^2 / 12``. Readings are quantised to the
+full-resolution LSB (3.9 mg) and clipped to +-range.
 Everything is deterministic for a given ``seed`` (samples drawn in order).
 """
 from accelcal_ros.calibration.model import SensorModel
@@ -77,6 +79,9 @@ class SimulatedAdxl345:
         self.dwell_s = float(dwell_s)
         self.move_s = float(move_s)
         self.noise_std_g = datasheet_noise_std_g(self.rate_hz) * noise_scale
+        # the datasheet figure is the noise of the quantised output: draw the analog part
+        quantisation_var = FULL_RES_G_PER_LSB ** 2 / 12.0
+        self._analog_std_g = np.sqrt(np.maximum(self.noise_std_g ** 2 - quantisation_var, 0.0))
         self._rng = np.random.default_rng(seed)
         rpy = np.zeros((len(self.poses_deg), 3))
         rpy[:, :2] = np.radians(self.poses_deg)
@@ -132,7 +137,7 @@ class SimulatedAdxl345:
         """Return ``(readings (N, 3) g, roll (N,) rad, pitch (N,) rad)`` at times ``t``."""
         roll, pitch = self.attitude_at(t)
         raw = self.truth.distort(specific_force_from_roll_pitch(roll, pitch))
-        raw = raw + self._rng.standard_normal(raw.shape) * self.noise_std_g
+        raw = raw + self._rng.standard_normal(raw.shape) * self._analog_std_g
         counts = np.round(raw / FULL_RES_G_PER_LSB)
         limit = self.range_g / FULL_RES_G_PER_LSB
         return np.clip(counts, -limit, limit - 1) * FULL_RES_G_PER_LSB, roll, pitch

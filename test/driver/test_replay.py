@@ -1,0 +1,59 @@
+"""Replay recordings: round trip, timing, and malformed or truncated files."""
+from accelcal_ros.driver.replay import load_recording, save_recording
+from accelcal_ros.driver.sources import ReplaySource
+from accelcal_ros.errors import FileFormatError
+import numpy as np
+import pytest
+
+
+def test_round_trip_and_as_fast_as_possible(tmp_path):
+    """A saved recording loads back; full-speed replay returns everything in chunks."""
+    path = tmp_path / 'rec.csv'
+    t = np.arange(1200) * 0.01
+    accel = np.tile([0.1, -0.2, 9.8], (1200, 1))
+    save_recording(path, t, accel)
+    t2, a2 = load_recording(path)
+    assert np.allclose(t2, t) and np.allclose(a2, accel)
+    clock = iter(np.arange(0, 100, 0.001)).__next__
+    source = ReplaySource(path, realtime=False, clock=clock, chunk=500)
+    source.start()
+    sizes = [len(source.poll()) for _ in range(4)]
+    assert sizes == [500, 500, 200, 0] and source.stats.finished
+    assert source.samples_g[0] == pytest.approx(accel[0] / 9.80665)
+
+
+def test_realtime_replay_keeps_recorded_spacing(tmp_path):
+    """Real-time replay releases the samples whose recorded time has come."""
+    path = tmp_path / 'rec.csv'
+    save_recording(path, 5.0 + np.arange(10) * 0.1, np.zeros((10, 3)))
+    now = [0.0]
+    source = ReplaySource(path, realtime=True, clock=lambda: now[0])
+    source.start()
+    now[0] = 0.25
+    batch = source.poll()
+    assert len(batch) == 3 and batch.stamps == pytest.approx([0.0, 0.1, 0.2])
+    assert source.next_poll_time() == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize('text, line, message', [
+    ('t,ax,ay,az\n0,0,0,9.8\n0.01,0,0,9.8\n0.02,0,0', 4, 'expected 4 fields'),
+    ('t,ax,ay\n0,0,0\n', 1, 'header lacks'),
+    ('t,ax,ay,az\n0,0,0,9.8\n0.01,0,x,9.8\n', 3, 'non-numeric'),
+    ('t,ax,ay,az\n0,0,0,9.8\n0.01,nan,0,9.8\n', 3, 'NaN'),
+    ('t,ax,ay,az\n0,0,0,9.8\n0,0,0,9.8\n', 3, 'increase'),
+    ('', 1, 'empty file'),
+    ('t,ax,ay,az\n', 2, 'no samples'),
+])
+def test_bad_files_name_the_line(tmp_path, text, line, message):
+    """Malformed or truncated recordings: FileFormatError with file, line and reason."""
+    path = tmp_path / 'bad.csv'
+    path.write_text(text)
+    with pytest.raises(FileFormatError, match=message) as info:
+        load_recording(path)
+    assert info.value.line == line and str(path) in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    """A missing recording is a clear error."""
+    with pytest.raises(FileFormatError, match='not found'):
+        load_recording(tmp_path / 'nope.csv')
