@@ -8,6 +8,7 @@ prints a live readout. Outputs (calibration file, panorama, clouds, plots) go to
 """
 import argparse
 import importlib
+import importlib.util
 import os
 import sys
 import time
@@ -28,10 +29,16 @@ class DemoContext:
         print(text, flush=True)
 
 
+def available_stages():
+    """Return the stages of :data:`STAGES` whose module is installed, in order."""
+    return [s for s in STAGES
+            if importlib.util.find_spec(f'accelcal_ros.demo.{s}_stage') is not None]
+
+
 def main(argv=None):
     """Run the selected stages; returns the exit status."""
     parser = argparse.ArgumentParser(prog='run-demo', description=__doc__.splitlines()[0])
-    parser.add_argument('--stages', default=','.join(STAGES),
+    parser.add_argument('--stages', default=','.join(available_stages()),
                         help=f'comma-separated stages to run, in order (default: all of '
                              f'{",".join(STAGES)})')
     parser.add_argument('--out', default='demo_output', help='output folder')
