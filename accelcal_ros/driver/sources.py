@@ -112,8 +112,11 @@ class I2cSource:
         self.min_backoff_s = min_backoff_s
         self.max_backoff_s = max_backoff_s
         self.period = 1.0 / self.rate_hz
-        # drain at a quarter of the FIFO's 32 entries, at least every 20 ms
-        self.poll_period = min(8 * self.period, 0.02) if use_fifo else self.period
+        # drain often enough that a batch stays small (sensor-data subscribers keep only
+        # 5 messages: a burst larger than that can be dropped by a slow subscriber), and
+        # at least every 20 ms, far from the FIFO's 32 entries
+        self.poll_period = min(max(2 * self.period, 0.0025), 0.02) if use_fifo \
+            else self.period
         self.stats = SourceStats()
         self._stamper = FifoTimestamper(self.rate_hz)
         self._next_poll = None
