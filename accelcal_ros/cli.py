@@ -37,8 +37,8 @@ def build_parser():
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
-            if exc.name != name:
-                raise
+            if not exc.name or not name.startswith(exc.name):
+                raise  # a dependency is missing, not the feature itself
             continue
         module.register(sub, study_sub)
     return parser

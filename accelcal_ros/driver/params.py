@@ -33,7 +33,8 @@ DRIVER_PARAMS = (
     ParamSpec('rate_hz', 100.0, 'Output data rate of the ADXL345.', kind='double',
               choices=OUTPUT_DATA_RATES_HZ, read_only=True, unit='Hz'),
     ParamSpec('fifo', 'auto', 'FIFO use: auto (stream mode above 100 Hz, where single reads '
-              'cannot keep up), on, off.', choices=('auto', 'on', 'off'), read_only=True),
+              'cannot keep up), always, never. (Not on/off: YAML reads those as booleans.)',
+              choices=('auto', 'always', 'never'), read_only=True),
     ParamSpec('frame_id', 'imu_link', 'frame_id of published messages (REP-103 body frame of '
               'the sensor).', validator=_non_empty),
     ParamSpec('seed', 0, 'Random seed of the simulated sensor (deterministic samples).',
@@ -81,6 +82,6 @@ def make_source(values):
         if not values['replay.file']:
             raise InputError('backend replay needs replay.file (a CSV t,ax,ay,az)')
         return ReplaySource(values['replay.file'], values['replay.realtime'])
-    use_fifo = {'on': True, 'off': False}.get(values['fifo'], rate > 100.0)
+    use_fifo = {'always': True, 'never': False}.get(values['fifo'], rate > 100.0)
     return I2cSource.from_bus_number(values['i2c_bus'], values['i2c_address'], rate,
                                      values['range_g'], use_fifo)

@@ -36,8 +36,8 @@ def descriptor_for(spec):
         additional_constraints=spec.constraints_text(), read_only=spec.read_only,
         # ints are accepted for doubles (``-p fov:=180``); ParamSpec.check enforces kinds.
         # (not for empty-list defaults, which must be declared by type instead)
-        dynamic_typing=spec.kind == 'double' or (spec.kind == 'double_array'
-                                                  and bool(spec.default)))
+        dynamic_typing=(spec.kind == 'double'
+                        or (spec.kind == 'double_array' and bool(spec.default))))
     if spec.kind in ('double', 'double_array') and spec.minimum is not None \
             and spec.maximum is not None:
         descriptor.floating_point_range = [FloatingPointRange(
