@@ -7,13 +7,9 @@ before anything initialises rclpy. Graph tests use :class:`accelcal_ros.demo.gra
 the installed node executables as separate processes and talk to them with rclpy.
 """
 import os
-import sys
 
+from accelcal_ros.demo.domain import allocate_domain_id
 import pytest
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from support.domain import allocate_domain_id  # noqa: E402
 
 _DOMAIN = allocate_domain_id()
 os.environ['ROS_DOMAIN_ID'] = str(_DOMAIN.domain_id)

@@ -13,6 +13,8 @@ import os
 import sys
 import time
 
+from accelcal_ros.demo.domain import allocate_domain_id
+
 STAGES = ('driver', 'calibration', 'panorama', 'p2p', 'lidar')
 
 
@@ -49,6 +51,13 @@ def main(argv=None):
     if unknown:
         parser.error(f'unknown stage(s) {unknown}; choose from {", ".join(STAGES)}')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    lease = None
+    if 'ROS_DOMAIN_ID' not in os.environ:  # keep off other graphs on this machine
+        lease = allocate_domain_id()
+        os.environ['ROS_DOMAIN_ID'] = str(lease.domain_id)
+    print(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]} (export it in another shell to '
+          'watch, e.g. ros2 topic echo /attitude); outputs in '
+          f'{os.path.abspath(args.out)}', flush=True)
     os.makedirs(args.out, exist_ok=True)
     from accelcal_ros.demo.graph import Graph
 

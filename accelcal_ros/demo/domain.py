@@ -1,4 +1,9 @@
-"""Allocate a ROS domain ID no other process on this machine is using (lock files)."""
+"""
+Allocate a ROS domain ID no other process on this machine is using (lock files).
+
+Used by the test sessions and by the demo (unless ``ROS_DOMAIN_ID`` is set), so that
+concurrent runs on one machine never see each other's topics, services or parameters.
+"""
 import fcntl
 import os
 import random

@@ -1,0 +1,1 @@
+"""Attitude: calibrated roll and pitch from the accelerometer (tilt estimator and node)."""

@@ -1,0 +1,186 @@
+"""
+``p2p``: camera pose from two emitters and the accelerometer's vertical (thin ROS wiring).
+
+Subscribes (relative; sensor-data QoS, which also receives from reliable publishers; the
+image subscription is reliable with ``image_qos:=reliable``):
+``image`` (sensor_msgs/Image: mono8, bgr8 or rgb8), ``camera_info``
+(sensor_msgs/CameraInfo: K, D and distortion_model) and ``attitude``
+(geometry_msgs/Vector3Stamped: x = roll, y = pitch of the IMU in rad, REP-103, as the
+``attitude`` node publishes it; matched to each image by stamp).
+
+Publishes ``pose`` (geometry_msgs/PoseStamped: the object in the camera optical frame,
+``X_cam = R X_obj + t``, frame_id and stamp of the image), ``yaw`` (std_msgs/Float64,
+rad: heading of the optical axis about the object's vertical,
+:func:`accelcal_ros.p2p.solver.yaw_from_rotation`), ``pose_candidates``
+(geometry_msgs/PoseArray: every valid solution, also when ambiguous) and
+``/diagnostics`` (the reason when there is no pose, detection quality). The logic is
+:class:`accelcal_ros.p2p.pipeline.P2PPipeline`; parameters:
+:data:`accelcal_ros.p2p.params.P2P_PARAMS`.
+"""
+import math
+import threading
+
+from accelcal_ros.errors import AccelcalError, InputError
+from accelcal_ros.p2p.params import P2P_PARAMS
+from accelcal_ros.p2p.pipeline import P2PPipeline
+from accelcal_ros.rosutil.images import image_msg_to_array
+from accelcal_ros.rosutil.params import ParameterSet
+from accelcal_ros.rosutil.runner import run
+from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Vector3Stamped
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Float64
+
+
+def _pose_msg(solution):
+    pose = Pose()
+    t = solution.translation
+    pose.position.x, pose.position.y, pose.position.z = float(t[0]), float(t[1]), float(t[2])
+    q = Rotation.from_matrix(solution.rotation).as_quat()
+    o = pose.orientation
+    o.x, o.y, o.z, o.w = (float(v) for v in q)
+    return pose
+
+
+class P2PNode(Node):
+    """Thin node around :class:`~accelcal_ros.p2p.pipeline.P2PPipeline`."""
+
+    def __init__(self):
+        super().__init__('p2p')
+        self._lock = threading.Lock()
+        self.params = ParameterSet(self, P2P_PARAMS, on_change=self._on_change)
+        self.pipeline = P2PPipeline(self.params.values)
+        self.pose_pub = self.create_publisher(PoseStamped, 'pose', 10)
+        self.yaw_pub = self.create_publisher(Float64, 'yaw', 10)
+        self.candidates_pub = self.create_publisher(PoseArray, 'pose_candidates', 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        qos = qos_profile_sensor_data
+        image_qos = qos if self.params['image_qos'] == 'sensor_data' else QoSProfile(
+            depth=5, reliability=ReliabilityPolicy.RELIABLE)
+        self.create_subscription(Image, 'image', self._on_image, image_qos)
+        self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info, qos)
+        self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude, qos)
+        self._camera_info_key = None
+        self._counts = {'images': 0, 'poses': 0, 'no_pose': 0, 'ambiguous_resolved': 0}
+        self._last_reason = 'no image received yet'
+        self._logged_reason = None
+        self._last_quality = {}
+        self._last_result = None
+        self.create_timer(self.params['diagnostics_period_s'], self._publish_diagnostics)
+        self.get_logger().info(
+            f'p2p: emitters M1 {self.pipeline.points[0].tolist()} M2 '
+            f'{self.pipeline.points[1].tolist()} m; waiting for {self._topic("image")}, '
+            f'{self._topic("camera_info")} and {self._topic("attitude")}')
+
+    def _topic(self, name):
+        return self.resolve_topic_name(name)
+
+    def _on_change(self, name, value):
+        with self._lock:
+            self.pipeline.configure({name: value})
+        if name == 'order' or name == 'emitters':
+            self.pipeline.last_pose = None
+
+    def _on_camera_info(self, msg):
+        key = (tuple(msg.k), tuple(msg.d), msg.distortion_model, msg.width, msg.height)
+        if key == self._camera_info_key:
+            return
+        self._camera_info_key = key
+        with self._lock:
+            reason = self.pipeline.set_camera_info(msg.k, msg.d, msg.distortion_model,
+                                                   msg.width, msg.height)
+        if reason:
+            self._note(reason)
+        else:
+            self.get_logger().info(f'camera_info: {msg.width}x{msg.height}, fx {msg.k[0]:.1f}, '
+                                   f'D {msg.distortion_model or "none"} '
+                                   f'{[round(v, 5) for v in msg.d]}')
+
+    def _on_attitude(self, msg):
+        with self._lock:
+            results = self.pipeline.add_attitude(stamp_to_seconds(msg.header.stamp),
+                                                 msg.vector.x, msg.vector.y)
+        for result in results:
+            self._publish(result)
+
+    def _on_image(self, msg):
+        self._counts['images'] += 1
+        stamp = stamp_to_seconds(msg.header.stamp)
+        try:
+            grey = image_msg_to_array(msg, want='mono8')
+        except InputError as exc:
+            self._counts['no_pose'] += 1
+            self._note(f'image rejected: {exc}')
+            return
+        with self._lock:
+            try:
+                results = self.pipeline.add_image(stamp, msg.header.frame_id, grey,
+                                                  tag=msg.header)
+            except AccelcalError as exc:
+                self._counts['no_pose'] += 1
+                self._note(f'image rejected: {exc}')
+                return
+        for result in results:
+            self._publish(result)
+
+    def _publish(self, result):
+        self._last_result = result
+        if result.detection is not None:
+            self._last_quality = result.detection.quality()
+        header = result.tag
+        if result.candidates:
+            array = PoseArray(header=header, poses=[_pose_msg(s) for s in result.candidates])
+            self.candidates_pub.publish(array)
+        if result.solution is None:
+            self._counts['no_pose'] += 1
+            self._note(result.reason)
+            return
+        self._counts['poses'] += 1
+        if result.resolved_by_continuity:
+            self._counts['ambiguous_resolved'] += 1
+        self.pose_pub.publish(PoseStamped(header=header, pose=_pose_msg(result.solution)))
+        self.yaw_pub.publish(Float64(data=float(result.solution.yaw)))
+        if self._last_reason:
+            self.get_logger().info('pose available again')
+        self._last_reason = ''
+        self._logged_reason = None
+
+    def _note(self, reason):
+        """Record why there is no pose; log it once per change (not per frame)."""
+        self._last_reason = reason
+        if reason != self._logged_reason:
+            self._logged_reason = reason
+            self.get_logger().warning(f'no pose: {reason}')
+            self._publish_diagnostics()
+
+    def _publish_diagnostics(self):
+        status = DiagnosticStatus(name=f'{self.get_name()}: P2P positioning',
+                                  hardware_id='p2p')
+        if self._last_reason:
+            status.level, status.message = DiagnosticStatus.WARN, self._last_reason
+        else:
+            status.level, status.message = DiagnosticStatus.OK, 'pose'
+        values = {k: str(v) for k, v in self._counts.items()}
+        values.update({k: str(v) for k, v in self._last_quality.items()})
+        result = self._last_result
+        if result is not None and result.solution is not None:
+            values['range_m'] = f'{result.solution.range_m:.4f}'
+            values['yaw_deg'] = f'{math.degrees(result.solution.yaw):.3f}'
+            values['solutions'] = str(len(result.candidates))
+        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(msg)
+
+
+def main(args=None):
+    """Run the ``p2p`` node."""
+    return run(P2PNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,219 @@
+"""
+The ``p2p`` node's logic without ROS: camera info, attitude matching, detection, solve.
+
+:class:`P2PPipeline` receives camera calibrations, attitudes (REP-103 roll/pitch of the
+IMU, rad, with stamps in seconds) and grey images with stamps, and returns one
+:class:`FrameResult` per image: a pose, or the reason there is none. Attitudes are
+matched to images by stamp (:class:`~accelcal_ros.rosutil.stamp_sync.StampMatcher`,
+nearest within ``attitude_tolerance_s``); an image that arrives before its attitude
+waits (the newest one only) until the attitude stream passes its stamp. Two valid
+solutions are resolved by continuity with the last pose when that is recent enough,
+otherwise reported.
+"""
+from dataclasses import dataclass, field
+
+from accelcal_ros.errors import AccelcalError
+from accelcal_ros.frames import rotation_matrix_from_list
+from accelcal_ros.p2p.beacons import detect_beacons, DetectorSettings, DISTORTION_MODELS
+from accelcal_ros.p2p.solver import down_from_roll_pitch, solve
+from accelcal_ros.rosutil.stamp_sync import StampMatcher
+import numpy as np
+
+MAX_WAIT_S = 1.0
+"""An image waits for its attitude only if the attitude stream is less than this behind."""
+
+
+@dataclass
+class FrameResult:
+    """
+    Outcome of one image.
+
+    ``solution`` (a :class:`~accelcal_ros.p2p.solver.P2PSolution`) or ``None`` with
+    ``reason``; ``candidates``: every valid solution; ``detection``: the
+    :class:`~accelcal_ros.p2p.beacons.BeaconDetection` (None if not run); ``tag``: what
+    the caller passed with the image (the node passes the image header).
+    """
+
+    stamp_s: float
+    frame_id: str
+    solution: object = None
+    reason: str = ''
+    candidates: list = field(default_factory=list)
+    detection: object = None
+    attitude: tuple = None
+    resolved_by_continuity: bool = False
+    tag: object = None
+
+
+@dataclass
+class CameraCalibration:
+    """``K`` 3x3, distortion ``D``, its model name and the image size (0: unknown)."""
+
+    camera_matrix: np.ndarray
+    dist_coeffs: np.ndarray
+    distortion_model: str
+    width: int
+    height: int
+
+
+def camera_calibration(k, d, distortion_model, width, height):
+    """Return a :class:`CameraCalibration` or raise InputError with the reason."""
+    from accelcal_ros.errors import InputError
+
+    k = np.asarray(k, dtype=float).reshape(-1)
+    if k.size != 9 or not np.all(np.isfinite(k)):
+        raise InputError('camera_info K must be 9 finite values')
+    k = k.reshape(3, 3)
+    if k[0, 0] <= 0.0 or k[1, 1] <= 0.0 or k[2, 2] == 0.0:
+        raise InputError('camera_info K has no focal length (all zero?): the camera is not '
+                         'calibrated; publish a calibrated camera_info')
+    d = np.asarray(d, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(d)):
+        raise InputError('camera_info D contains NaN or infinity')
+    model = distortion_model or ('plumb_bob' if d.size else '')
+    if d.size and np.any(d) and model not in DISTORTION_MODELS:
+        raise InputError(f'camera_info distortion_model {model!r} is not supported; use '
+                         'plumb_bob, rational_polynomial or equidistant')
+    return CameraCalibration(k / k[2, 2], d, model, int(width), int(height))
+
+
+class P2PPipeline:
+    """Stateful P2P positioning from images, camera info and attitude (see the module text)."""
+
+    def __init__(self, values):
+        self.values = dict(values)
+        self.camera = None
+        self.camera_reason = 'no camera_info received yet'
+        self.attitudes = StampMatcher(['attitude'], depth=400)
+        self.pending = None
+        self.last_pose = None
+        self.configure(self.values)
+
+    def configure(self, values):
+        """Apply (validated) parameter values; InputError if the set is inconsistent."""
+        from accelcal_ros.errors import InputError
+
+        merged = dict(self.values, **values)
+        settings = DetectorSettings(
+            threshold=merged['threshold'], min_area_px=merged['min_area_px'],
+            max_area_px=merged['max_area_px'], min_peak=merged['min_peak'],
+            max_candidates=merged['max_candidates'], order=merged['order'])
+        mount = rotation_matrix_from_list(merged['imu_to_camera'], 'imu_to_camera')
+        points = np.asarray(merged['emitters'], dtype=float).reshape(2, 3)
+        if not np.all(np.isfinite(points)):
+            raise InputError('emitters contain NaN or infinity')
+        self.values, self.settings, self.mount, self.points = merged, settings, mount, points
+
+    def set_camera_info(self, k, d, distortion_model, width, height):
+        """Store the camera calibration; returns None or the reason it was rejected."""
+        try:
+            self.camera = camera_calibration(k, d, distortion_model, width, height)
+            self.camera_reason = ''
+        except AccelcalError as exc:
+            self.camera = None
+            self.camera_reason = f'camera_info rejected: {exc}'
+        return self.camera_reason or None
+
+    def add_attitude(self, stamp_s, roll, pitch):
+        """Store an attitude; return the results of images that were waiting for it."""
+        self.attitudes.add('attitude', stamp_s, (float(roll), float(pitch)))
+        if self.pending is None:
+            return []
+        image_stamp = self.pending[0]
+        if (self._matched(image_stamp) is not None
+                or stamp_s > image_stamp + self.values['attitude_tolerance_s']):
+            pending, self.pending = self.pending, None
+            return [self._process(*pending)]
+        return []
+
+    def _matched(self, stamp_s):
+        hit = self.attitudes.nearest(stamp_s, self.values['attitude_tolerance_s'])['attitude']
+        return None if hit is None else hit[1]
+
+    def add_image(self, stamp_s, frame_id, grey, tag=None):
+        """
+        Process an image (grey uint8) or hold it until its attitude arrives.
+
+        Returns the list of finished :class:`FrameResult` (possibly empty while waiting,
+        or two when a newer image displaces an older waiting one).
+        """
+        results = []
+        if self.pending is not None:
+            results.append(self._process(*self.pending))
+            self.pending = None
+        latest = self.attitudes.latest_stamp()
+        tolerance = self.values['attitude_tolerance_s']
+        if (self.camera is not None and latest is not None and self._matched(stamp_s) is None
+                and stamp_s - MAX_WAIT_S < latest < stamp_s + tolerance):
+            self.pending = (stamp_s, frame_id, grey, tag)
+            return results
+        results.append(self._process(stamp_s, frame_id, grey, tag))
+        return results
+
+    def _process(self, stamp_s, frame_id, grey, tag=None):
+        result = FrameResult(stamp_s, frame_id, tag=tag)
+        if self.camera is None:
+            result.reason = self.camera_reason
+            return result
+        cam = self.camera
+        if cam.width and cam.height and grey.shape[:2] != (cam.height, cam.width):
+            result.reason = (f'image {grey.shape[1]}x{grey.shape[0]} does not match '
+                             f'camera_info {cam.width}x{cam.height}')
+            return result
+        latest = self.attitudes.latest_stamp()
+        attitude = self._matched(stamp_s)
+        if attitude is None:
+            if latest is None:
+                result.reason = 'no attitude received yet (topic attitude)'
+            else:
+                nearest = self.attitudes.nearest(stamp_s, float('inf'))['attitude'][0]
+                result.reason = (f'no attitude within {self.values["attitude_tolerance_s"]:g} '
+                                 f's of the image stamp (nearest {nearest - stamp_s:+.3f} s '
+                                 f'away): attitude messages dropped, or the camera and IMU '
+                                 f'clocks differ')
+            return result
+        result.attitude = attitude
+        if not np.all(np.isfinite(attitude)):
+            result.reason = 'attitude contains NaN or infinity (IMU not ready?)'
+            return result
+        down = down_from_roll_pitch(attitude[0], attitude[1], self.mount)
+        try:
+            detection = detect_beacons(grey, self.settings, cam.camera_matrix,
+                                       cam.dist_coeffs, cam.distortion_model, down)
+        except AccelcalError as exc:
+            result.reason = f'detection failed: {exc}'
+            return result
+        result.detection = detection
+        if not detection.ok:
+            result.reason = detection.reason
+            return result
+        try:
+            candidates = solve(detection.rays, self.points, down)
+        except AccelcalError as exc:
+            result.reason = f'no pose: {exc}'
+            return result
+        result.candidates = candidates
+        if len(candidates) == 1:
+            result.solution = candidates[0]
+        else:
+            last = self.last_pose
+            max_age = self.values['continuity_max_age_s']
+            if last is not None and max_age > 0 and abs(stamp_s - last[0]) <= max_age:
+                result.solution = min(candidates, key=lambda s: _pose_distance(s, last[1]))
+                result.resolved_by_continuity = True
+            else:
+                ranges = ', '.join(f'{s.range_m:.3f} m / yaw {np.degrees(s.yaw):.1f} deg'
+                                   for s in candidates)
+                result.reason = (f'ambiguous: two valid solutions ({ranges}) and no pose '
+                                 f'within {max_age:g} s to choose by continuity')
+                return result
+        self.last_pose = (stamp_s, result.solution)
+        return result
+
+
+def _pose_distance(solution, reference):
+    """Return a unitless distance between two poses (relative translation + rotation angle)."""
+    scale = max(np.linalg.norm(reference.translation), 1e-9)
+    dt = np.linalg.norm(solution.translation - reference.translation) / scale
+    cos_angle = (np.trace(solution.rotation @ reference.rotation.T) - 1.0) / 2.0
+    return dt + float(np.arccos(np.clip(cos_angle, -1.0, 1.0)))

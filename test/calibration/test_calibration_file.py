@@ -1,0 +1,84 @@
+"""Calibration YAML: round trip, atomic write with backup, bad files."""
+import os
+
+from accelcal_ros.calibration.calibration_file import (load_calibration, load_sensor_model,
+                                                       save_calibration)
+from accelcal_ros.calibration.coverage import recommended_directions
+from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid
+from accelcal_ros.calibration.model import SensorModel
+from accelcal_ros.errors import FileFormatError
+import numpy as np
+import pytest
+import yaml
+
+
+@pytest.fixture
+def result():
+    truth = SensorModel(misalignment=(0.004, -0.002, 0.003))
+    raw = truth.distort(recommended_directions(14))
+    raw += np.random.default_rng(0).normal(0.0, 3e-4, raw.shape)
+    return fit_ellipsoid(raw, np.full((14, 3), 3e-4))
+
+
+def test_round_trip_keys_and_equation(tmp_path, result):
+    path = tmp_path / 'calib.yaml'
+    save_calibration(path, result)
+    data = yaml.safe_load(path.read_text())
+    for key in ('model', 'scale', 'bias', 'misalignment', 'scale_std', 'bias_std',
+                'residual_rms_g', 'positions', 'predicted_tilt_error_deg', 'equation'):
+        assert key in data, key
+    assert 'diag(1/scale)' in data['equation'] and 'atan2' in data['equation']
+    model = load_sensor_model(path)
+    np.testing.assert_allclose(model.scale, result.sensor_model.scale, atol=1e-8)
+    np.testing.assert_allclose(model.bias, result.sensor_model.bias, atol=1e-8)
+    np.testing.assert_allclose(model.misalignment, result.sensor_model.misalignment, atol=1e-8)
+    record = load_calibration(path)
+    assert record.model == 'full' and record.predicted_tilt_error_deg > 0
+
+
+def test_equation_in_the_file_applies_without_the_package(tmp_path, result):
+    path = tmp_path / 'calib.yaml'
+    save_calibration(path, result)
+    d = yaml.safe_load(path.read_text())
+    m_yz, m_zy, m_zx = d['misalignment']
+    t = np.array([[1, -m_yz, m_zy], [0, 1, -m_zx], [0, 0, 1]])
+    raw = np.array([0.3, -0.5, 0.7])
+    by_hand = t @ ((raw - np.array(d['bias'])) / np.array(d['scale']))
+    np.testing.assert_allclose(by_hand, load_sensor_model(path).correct(raw), atol=1e-12)
+
+
+def test_previous_file_kept_as_backup(tmp_path, result):
+    path = tmp_path / 'calib.yaml'
+    path.write_text('old: 1\n')
+    save_calibration(path, result)
+    assert (tmp_path / 'calib.yaml.bak').read_text() == 'old: 1\n'
+    assert not [n for n in os.listdir(tmp_path) if n.startswith('.')]
+
+
+@pytest.mark.parametrize('text, reason', [
+    (None, 'not found'),
+    ('', 'mapping'),
+    ('model: full\nscale: [0.9, 0.9, 0.9]\n', 'missing key "bias"'),
+    ('model: full\nscale: [0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" must be a list of 3'),
+    ('model: full\nscale: [0.9, 0.9, .nan]\nbias: [0, 0, 0]\n', 'NaN'),
+    ('model: full\nscale: [0.9, -0.9, 0.9]\nbias: [0, 0, 0]\n', 'positive'),
+    ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [a, b, c]\n', '"bias" must be'),
+    ('model: cubic\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n', 'one of'),
+    ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [0.1, 0.2', 'not valid YAML'),
+])
+def test_bad_files_raise_file_format_error(tmp_path, text, reason):
+    path = tmp_path / 'calib.yaml'
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(FileFormatError, match=reason) as info:
+        load_sensor_model(path)
+    assert str(path) in str(info.value)
+
+
+def test_truncated_real_file_rejected(tmp_path, result):
+    path = tmp_path / 'calib.yaml'
+    save_calibration(path, result)
+    text = path.read_text()
+    path.write_text(text[:text.index('bias:') + 12])
+    with pytest.raises(FileFormatError):
+        load_sensor_model(path)

@@ -1,0 +1,103 @@
+"""``accelcal calibrate / apply / attitude / plot-calibration`` on simulated recordings."""
+import os
+
+from accelcal_ros.calibration.calibration_file import load_sensor_model
+from accelcal_ros.calibration.coverage import recommended_directions, roll_pitch_deg_of
+from accelcal_ros.cli import main
+from accelcal_ros.driver.replay import save_recording
+from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.filterwarnings('ignore:Gimbal lock')
+G = 9.80665
+
+
+@pytest.fixture(scope='module')
+def recording(tmp_path_factory):
+    poses = roll_pitch_deg_of(recommended_directions(12))
+    sim = SimulatedAdxl345(poses_deg=poses, dwell_s=1.5, move_s=0.7, seed=5)
+    t = np.arange(0.0, sim.period_s * 12, 0.01)
+    raw = sim.read(t)
+    path = tmp_path_factory.mktemp('rec') / 'rec.csv'
+    save_recording(path, t, raw * G)
+    return path, sim, t, raw
+
+
+def test_calibrate_apply_attitude_plot(tmp_path, recording, capsys):
+    path, sim, t, raw = recording
+    calib = tmp_path / 'calib.yaml'
+    plot = tmp_path / 'calib.png'
+    assert main(['calibrate', str(path), '-o', str(calib), '--plot', str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert 'full model from 12 positions' in out and 'predicted roll/pitch' in out
+    model = load_sensor_model(calib)
+    np.testing.assert_allclose(model.scale, sim.truth.scale, atol=1e-3)
+    np.testing.assert_allclose(model.bias, sim.truth.bias, atol=1e-3)
+    assert plot.read_bytes()[:4] == b'\x89PNG'
+
+    corrected = tmp_path / 'corrected.csv'
+    assert main(['apply', str(path), '--calibration', str(calib), '-o', str(corrected)]) == 0
+    data = np.loadtxt(corrected, delimiter=',', skiprows=1)
+    assert data.shape == (len(t), 4)
+    still = sim.pose_index(t) >= 0
+    norms = np.linalg.norm(data[still, 1:], axis=1) / G
+    assert abs(np.mean(norms) - 1.0) < 1e-3
+
+    out_csv = tmp_path / 'att.csv'
+    assert main(['attitude', str(path), '--calibration', str(calib), '-o',
+                 str(out_csv)]) == 0
+    att = np.loadtxt(out_csv, delimiter=',', skiprows=1)
+    roll, pitch = sim.attitude_at(t)
+    sel = still & (np.abs(pitch) < np.radians(80))
+    roll_err = np.angle(np.exp(1j * (np.radians(att[sel, 1]) - roll[sel])))
+    # Single samples: noise ~0.2-0.3 deg per sample; the mean error is the calibration's.
+    assert abs(np.degrees(np.mean(np.radians(att[sel, 2]) - pitch[sel]))) < 0.05
+    assert np.degrees(np.sqrt(np.mean(roll_err ** 2))) < 0.6
+    assert np.all(np.isfinite(att))
+
+
+def test_plot_calibration_command(tmp_path, recording):
+    path, *_ = recording
+    calib = tmp_path / 'calib.yaml'
+    assert main(['calibrate', str(path), '-o', str(calib)]) == 0
+    png = tmp_path / 'plot.png'
+    assert main(['plot-calibration', str(calib), '-o', str(png)]) == 0
+    assert png.stat().st_size > 10000
+
+
+def test_bad_inputs_exit_2_and_write_nothing(tmp_path, recording, capsys):
+    path, sim, t, raw = recording
+    out = tmp_path / 'calib.yaml'
+    # Too few positions: the first three dwells only.
+    short = tmp_path / 'short.csv'
+    n = int(sim.period_s * 3 / 0.01)
+    save_recording(short, t[:n], raw[:n] * G)
+    assert main(['calibrate', str(short), '-o', str(out)]) == 2
+    assert 'too few' in capsys.readouterr().err and not out.exists()
+    # Truncated recording.
+    truncated = tmp_path / 'trunc.csv'
+    truncated.write_text(path.read_text()[:5000].rsplit(',', 1)[0])
+    assert main(['calibrate', str(truncated), '-o', str(out)]) == 2
+    assert 'trunc.csv' in capsys.readouterr().err and not out.exists()
+    # Missing or broken calibration file.
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('model: full\nscale: [1, 1]\nbias: [0, 0, 0]\n')
+    for calib in (tmp_path / 'missing.yaml', bad):
+        result = tmp_path / 'corr.csv'
+        assert main(['apply', str(path), '--calibration', str(calib), '-o', str(result)]) == 2
+        assert str(calib) in capsys.readouterr().err and not result.exists()
+    assert not [f for f in os.listdir(tmp_path) if f.startswith('.')]
+
+
+def test_nan_and_saturated_samples_in_a_recording_are_skipped(tmp_path, recording, capsys):
+    path, sim, t, raw = recording
+    raw = raw.copy()
+    raw[7::150] = np.nan
+    raw[30::700, 1] = 16.0
+    noisy = tmp_path / 'nan.csv'
+    save_recording(noisy, t, raw * G)
+    out = tmp_path / 'calib.yaml'
+    assert main(['calibrate', str(noisy), '-o', str(out)]) == 0
+    assert 'samples rejected' in capsys.readouterr().out
+    np.testing.assert_allclose(load_sensor_model(out).bias, sim.truth.bias, atol=2e-3)
