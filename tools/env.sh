@@ -13,5 +13,8 @@ case $- in *u*) _nounset=1; set +u ;; *) _nounset= ;; esac
 source "$_install/setup.bash"
 [ -n "$_nounset" ] && set -u
 export ACCELCAL_INSTALL="$_install"
+# the node executables and `accelcal` (ament_python installs them in lib/<package>)
+case ":$PATH:" in *":$_install/accelcal_ros/lib/accelcal_ros:"*) ;;
+  *) export PATH="$_install/accelcal_ros/lib/accelcal_ros:$PATH" ;; esac
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 unset _accelcal_root _venv _install _nounset
