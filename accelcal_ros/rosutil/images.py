@@ -72,8 +72,12 @@ def array_to_image_msg(arr, encoding, image_type, header=None):
     if encoding not in _CHANNELS:
         raise InputError(f'unsupported image encoding {encoding!r}')
     channels = _CHANNELS[encoding]
-    if (channels == 1 and arr.ndim != 2) or (channels == 3 and arr.shape[-1] != 3):
+    wrong_colour = channels == 3 and (arr.ndim != 3 or arr.shape[2] != 3)
+    if (channels == 1 and arr.ndim != 2) or wrong_colour:
         raise InputError(f'array of shape {arr.shape} does not fit encoding {encoding}')
+    if arr.dtype != np.dtype(_DTYPES[encoding]):
+        raise InputError(f'array of type {arr.dtype} does not fit encoding {encoding} '
+                         f'({np.dtype(_DTYPES[encoding])})')
     msg = image_type()
     if header is not None:
         msg.header = header

@@ -1,0 +1,133 @@
+"""
+Offline commands of the panorama feature.
+
+* ``accelcal stitch --rig rig.yaml --roll DEG --pitch DEG [--fov-h 180 --fov-v 120
+  --width 3600 --height 2400 --projection spherical] -o pano.png img0.png img1.png ...``:
+  stitch one set of images (in rig order) with the reference camera's roll and pitch
+  (degrees, REP-103: roll right-side-down positive, pitch nose-down positive);
+* ``accelcal study horizon``: paper A's Fig. 6 experiment (horizon deviation for pitch
+  errors of -2 / +2 deg and for the package's own calibration error).
+"""
+
+
+def register(subparsers, study_subparsers):
+    """Add this feature's subcommands to the ``accelcal`` parser."""
+    p = subparsers.add_parser(
+        'stitch', help='stitch one set of rig images into a levelled panorama')
+    p.add_argument('images', nargs='+', help='camera images, in rig order')
+    p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
+                   'K, D, R)')
+    p.add_argument('--roll', type=float, required=True,
+                   help='reference camera roll, degrees (REP-103 body attitude)')
+    p.add_argument('--pitch', type=float, required=True,
+                   help='reference camera pitch, degrees (REP-103: nose down positive)')
+    p.add_argument('--fov-h', type=float, default=180.0, help='horizontal extent, deg (180)')
+    p.add_argument('--fov-v', type=float, default=120.0, help='vertical extent, deg (120)')
+    p.add_argument('--width', type=int, default=3600, help='panorama width, px (3600)')
+    p.add_argument('--height', type=int, default=2400, help='panorama height, px (2400)')
+    p.add_argument('--projection', default='spherical', choices=('spherical', 'cylindrical'),
+                   help='spherical (equal angle per pixel; default) or cylindrical')
+    p.add_argument('--imu-to-camera', type=float, nargs=9, metavar='R',
+                   help='rotation body -> reference camera optical frame, 9 row-major '
+                        'values (default: camera looks along body +x)')
+    p.add_argument('--blend-deg', type=float, default=0.0,
+                   help='feathered blending band at the seams, deg (default 0: off)')
+    p.add_argument('-o', '--output', required=True, help='panorama image to write (PNG)')
+    p.set_defaults(handler=_stitch)
+
+    p = study_subparsers.add_parser(
+        'horizon', help='paper A Fig. 6: horizon deviation for pitch errors and for the '
+                        'own calibration error of the package')
+    p.add_argument('--quick', action='store_true',
+                   help='half resolution and 20 calibrations (a few seconds)')
+    p.add_argument('--count', type=int, default=100,
+                   help='calibrations fitted for the own-calibration row (100)')
+    p.add_argument('--out', help='folder to write the three panoramas to (PNG)')
+    p.set_defaults(handler=_study)
+
+
+def read_image(path):
+    """Read an 8-bit image (grey or BGR) with a clear error for unreadable files."""
+    from accelcal_ros.errors import FileFormatError
+    import cv2
+    import numpy as np
+    import os
+
+    if not os.path.exists(path):
+        raise FileFormatError(path, 'image not found')
+    image = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise FileFormatError(path, 'not an image OpenCV can read (PNG, JPEG, ...)')
+    if image.dtype != np.uint8:
+        raise FileFormatError(path, f'{image.dtype} pixels; the stitcher takes 8-bit images')
+    if image.ndim == 3 and image.shape[2] == 4:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    return image
+
+
+def write_image(path, image):
+    """Encode ``image`` by the file's extension (PNG if none) and write it atomically."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.fileio import write_bytes_atomic
+    import cv2
+    import os
+
+    ext = os.path.splitext(path)[1].lower() or '.png'
+    try:
+        ok, data = cv2.imencode(ext, image)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise InputError(f'{path}: cannot encode an image as {ext}; use .png or .jpg')
+    write_bytes_atomic(path, data.tobytes())
+
+
+def _stitch(args):
+    import math
+
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import load_rig
+    from accelcal_ros.panorama.stitch import Stitcher
+
+    rig = load_rig(args.rig)
+    if len(args.images) != len(rig):
+        raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
+                         f'cameras ({", ".join(rig.names)}); give one image per camera, '
+                         'in rig order')
+    for name in ('roll', 'pitch', 'blend_deg'):
+        if not math.isfinite(getattr(args, name)):
+            raise InputError(f'--{name.replace("_", "-")} must be a finite number')
+    geometry = PanoramaGeometry(args.width, args.height, args.fov_h, args.fov_v,
+                                args.projection)
+    imu_to_camera = DEFAULT_IMU_TO_CAMERA if args.imu_to_camera is None else \
+        rotation_matrix_from_list(args.imu_to_camera, '--imu-to-camera')
+    images = [read_image(path) for path in args.images]
+    channels = 1 if all(im.ndim == 2 for im in images) else 3
+    stitcher = Stitcher(rig, geometry, imu_to_camera, blend_width_deg=args.blend_deg,
+                        channels=channels)
+    for i, (path, image) in enumerate(zip(args.images, images)):
+        try:
+            stitcher.set_image(i, image)
+        except InputError as exc:
+            raise InputError(f'{path}: {exc}') from None
+    stitcher.set_attitude(math.radians(args.roll), math.radians(args.pitch))
+    panorama = stitcher.render()
+    write_image(args.output, panorama)
+    seen = stitcher.coverage().mean()
+    print(f'wrote {args.output}: {geometry.width}x{geometry.height} {geometry.projection} '
+          f'panorama, {geometry.fov_h_deg:g} x {geometry.fov_v_deg:g} deg, '
+          f'{100.0 * seen:.1f} % covered by {len(rig)} cameras; horizon at row '
+          f'{geometry.horizon_row():g}')
+    return 0
+
+
+def _study(args):
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.panorama import horizon_study
+
+    if args.count < 1:
+        raise InputError('--count must be at least 1')
+    horizon_study.run(count=args.count, quick=args.quick, out_dir=args.out)
+    return 0

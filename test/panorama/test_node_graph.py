@@ -1,0 +1,190 @@
+"""The ``stitcher`` executable in a real ROS 2 graph (3 cameras 320x240 -> 720x480)."""
+import math
+import time
+
+from accelcal_ros.panorama import render
+from accelcal_ros.panorama.projection import PanoramaGeometry
+from accelcal_ros.panorama.rig import ring_rig, save_rig
+from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
+from accelcal_ros.rosutil.stamps import seconds_to_stamp, stamp_to_seconds
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+import numpy as np
+import pytest
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image
+
+ROLL, PITCH = math.radians(2.0), math.radians(10.0)
+
+
+class Feeder:
+    """Publish rig images (and attitude) from the probe, like cameras and the IMU."""
+
+    def __init__(self, graph, views, topics):
+        self.node = graph.node
+        self.views = views
+        self.pubs = [self.node.create_publisher(Image, t, qos_profile_sensor_data)
+                     for t in topics]
+        self.att = self.node.create_publisher(Vector3Stamped, 'attitude',
+                                              qos_profile_sensor_data)
+        self.stamps = []
+
+    def frames(self, cameras=None, encoding='bgr8'):
+        now = time.time()
+        self.stamps.append(now)
+        for i, pub in enumerate(self.pubs):
+            if cameras is not None and i not in cameras:
+                continue
+            image = self.views[i]
+            if encoding == '16UC1':
+                image = image[:, :, 0]
+            header = Image().header
+            header.stamp = seconds_to_stamp(now, Time)
+            msg = array_to_image_msg(image if encoding != '16UC1' else image.copy(),
+                                     'bgr8' if encoding == 'bgr8' else 'mono8', Image, header)
+            msg.encoding = encoding
+            pub.publish(msg)
+        return now
+
+    def attitude(self, roll, pitch):
+        msg = Vector3Stamped()
+        msg.header.stamp = seconds_to_stamp(time.time(), Time)
+        msg.vector.x, msg.vector.y = roll, pitch
+        self.att.publish(msg)
+
+
+def _wait_for_log(proc, text, timeout=10.0, feed=None):
+    """Wait for ``text`` in the node's output, calling ``feed()`` every 0.1 s meanwhile."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if text in proc.output():
+            return True
+        if feed is not None:
+            feed()
+        time.sleep(0.1)
+    return False
+
+
+def _feed_until(collector, count, feed, timeout=15.0):
+    """Call ``feed()`` every 0.1 s until ``collector`` holds ``count`` messages."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and len(collector.snapshot()[0]) < count:
+        feed()
+        time.sleep(0.1)
+    return collector.wait_for(count, timeout=1.0)
+
+
+@pytest.mark.graph
+def test_stitcher_node_end_to_end(graph, tmp_path):
+    """No attitude: silence (said once); then panoramas; a stalled camera goes black."""
+    rig = ring_rig(3, 320, 240, 275.0, 45.0, distortion=(-0.08, 0.01, 0, 0, 0))
+    save_rig(tmp_path / 'rig.yaml', rig)
+    geometry = PanoramaGeometry(720, 480)
+    scene = render.make_scene(1800, 900, seed=2)
+    views = render.render_camera_views(scene, rig, ROLL, PITCH)
+    topics = ['cam0/image_raw', 'cam1/image_raw', 'cam2/image_raw']
+    proc = graph.start('stitcher', params={
+        'rig_file': str(tmp_path / 'rig.yaml'), 'width': 720, 'height': 480,
+        'stale_timeout_s': 0.6, 'camera_topics': topics})
+    panoramas = graph.collect(Image, 'panorama', 10)
+    diagnostics = graph.collect(DiagnosticArray, '/diagnostics', 10)
+    feeder = Feeder(graph, views, topics)
+    assert _wait_for_log(proc, 'stitching 3 cameras', 15.0), proc.output()
+    assert _wait_for_log(proc, 'no attitude received yet', 15.0, feeder.frames), proc.output()
+    assert panoramas.snapshot()[0] == []
+
+    def bad_inputs():
+        feeder.attitude(float('nan'), 0.0)
+        feeder.frames(cameras=[1], encoding='16UC1')
+
+    assert _wait_for_log(proc, 'attitude rejected', 10.0, bad_inputs), proc.output()
+    assert _wait_for_log(proc, "unsupported image encoding '16UC1'", 10.0, bad_inputs)
+
+    def good():
+        feeder.attitude(ROLL, PITCH)
+        feeder.frames()
+
+    msgs = _feed_until(panoramas, 3, good)
+    assert proc.output().count('no attitude received yet') == 1
+    last = msgs[-1]
+    assert (last.width, last.height, last.encoding) == (720, 480, 'bgr8')
+    assert min(abs(stamp_to_seconds(last.header.stamp) - s) for s in feeder.stamps) < 1e-6
+    panorama = image_msg_to_array(last)
+    truth = render.render_panorama_truth(scene, geometry)
+    covered = panorama.max(axis=2) > 0
+    assert covered.mean() > 0.2 and render.psnr(panorama, truth, covered) > 28.0
+    rows = render.horizon_rows(panorama, geometry)
+    assert np.nanmax(np.abs(rows - 239.5)) < 1.0
+    # camera 2 stalls: the others go on, its sector turns black, diagnostics say so
+    left_sector = covered.copy()
+    left_sector[:, 300:] = False
+
+    def two_cameras():
+        feeder.attitude(ROLL, PITCH)
+        feeder.frames(cameras=[0, 1])
+
+    assert _wait_for_log(proc, 'cam2 (cam2/image_raw) stalled', 10.0, two_cameras)
+    panoramas.clear()
+    msgs = _feed_until(panoramas, 2, two_cameras)
+    stalled = image_msg_to_array(msgs[-1])
+    assert stalled[:, :150].max() == 0 and stalled[:, 330:390].max() > 0
+
+    def stalled_status():
+        for array in diagnostics.snapshot()[0]:
+            for status in array.status:
+                if status.name == 'stitcher: camera cam2' and 'stalled' in status.message:
+                    return status
+        return None
+
+    deadline = time.monotonic() + 5.0
+    while stalled_status() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert stalled_status() is not None
+    assert proc.proc.poll() is None
+
+
+@pytest.mark.graph
+def test_stitcher_node_refuses_a_bad_rig(graph, tmp_path):
+    """A rig file with a non-rotation R: one clear error line naming the camera, exit 1."""
+    (tmp_path / 'rig.yaml').write_text(
+        'cameras:\n- {name: front, width: 32, height: 24, K: [30,0,16,0,30,12,0,0,1],'
+        ' R: [1,0,0,0,1,0,0,0,1]}\n- {name: side, width: 32, height: 24, '
+        'K: [30,0,16,0,30,12,0,0,1], R: [1,0,0,0,1,0,0,0,3]}\n')
+    proc = graph.start('stitcher', params={'rig_file': str(tmp_path / 'rig.yaml')})
+    assert proc.wait_exit(timeout=20.0) == 1
+    assert "camera 1 ('side'): R: not a rotation" in proc.output()
+
+
+@pytest.mark.graph
+def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_path):
+    """Cameras never within sync_tolerance_s are reported once; wrong sizes rejected."""
+    rig = ring_rig(2, 64, 48, 55.0, 45.0)
+    save_rig(tmp_path / 'rig.yaml', rig)
+    proc = graph.start('stitcher', params={
+        'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
+        'sync_tolerance_s': 0.001})
+    pubs = [graph.node.create_publisher(Image, f'cam{i}/image_raw', qos_profile_sensor_data)
+            for i in range(2)]
+    att = graph.node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
+    image = np.full((48, 64, 3), 128, np.uint8)
+    wrong = np.zeros((10, 10, 3), np.uint8)
+
+    def feed():
+        now = time.time()
+        msg = Vector3Stamped()
+        msg.header.stamp = seconds_to_stamp(now, Time)
+        att.publish(msg)
+        for i, pub in enumerate(pubs):
+            header = Image().header
+            header.stamp = seconds_to_stamp(now + 0.03 * i, Time)
+            pub.publish(array_to_image_msg(image, 'bgr8', Image, header))
+        header = Image().header
+        header.stamp = seconds_to_stamp(now, Time)
+        pubs[1].publish(array_to_image_msg(wrong, 'bgr8', Image, header))
+
+    assert _wait_for_log(proc, 'no set of frames with stamps within', 20.0, feed), \
+        proc.output()
+    assert 'cam0 -30 ms' in proc.output()  # offsets from the newest frame (cam1's)
+    assert 'image is 10x10, the rig file says 64x48' in proc.output()
+    assert proc.output().count('no set of frames with stamps within') == 1
