@@ -56,33 +56,36 @@ class SimSource:
 
     Sample ``k`` is due at ``t0 + k / rate`` and carries the simulator's state at
     ``k / rate`` seconds of simulated time. ``max_batch_period_s`` groups samples at high
-    rates (at 3200 Hz a poll every 1 ms publishes about three samples).
+    rates (at 3200 Hz a poll every 1.25 ms publishes four samples).
     """
 
     def __init__(self, sensor, clock=time.time, max_batch_period_s=0.001):
         self.sensor = sensor
         self.clock = clock
         self.period = 1.0 / sensor.rate_hz
-        self.poll_period = max(self.period, max_batch_period_s)
+        # samples per poll: 1 up to 1 kHz, then groups spanning about max_batch_period_s
+        self.batch = max(1, int(np.ceil(max_batch_period_s / self.period - 1e-9)))
         self.stats = SourceStats()
         self._t0 = None
-        self._last_poll = None
         self._next = 0
 
     def start(self):
         """Start the simulated clock now."""
         self._t0 = self.clock()
-        self._last_poll = self._t0 - self.poll_period
         self._next = 0
 
     def next_poll_time(self):
-        """Return when the next sample (or group of samples) is due."""
-        return max(self._t0 + self._next * self.period, self._last_poll + self.poll_period)
+        """
+        Return when the next sample (or group of samples) is due.
+
+        Poll times lie on the sample grid (``t0 + k / rate``), so a late wake-up never
+        delays the following polls.
+        """
+        return self._t0 + (self._next + self.batch - 1) * self.period
 
     def poll(self):
         """Return every sample due by now."""
-        self._last_poll = self.clock()
-        due = int(np.floor((self._last_poll - self._t0) / self.period)) + 1
+        due = int(np.floor((self.clock() - self._t0) / self.period + 1e-9)) + 1
         if due <= self._next:
             return Batch.empty()
         sim_t = np.arange(self._next, due) * self.period
