@@ -1,0 +1,134 @@
+"""
+Streaming georeferencing (core of ``cloud_assembler``): scans + navigation poses -> map.
+
+Poses (time s, position m, quaternion xyzw; IMU body -> navigation frame) are appended in
+time order; one older than the newest is rejected (counted) -- a stream out of order is
+reported, never re-sorted. A scan (structured array with a per-point time field, plus its
+stamp) waits until the pose buffer covers its last point or ``max_wait_s`` passed, then
+is georeferenced with :func:`accelcal_ros.lidar.georef.georeference`; points outside the
+buffered poses are dropped and counted. Georeferenced points are accumulated (up to
+``max_points``, oldest first out) for saving to a file.
+"""
+from collections import deque
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.lidar.cloud import make_cloud, point_times, xyz
+from accelcal_ros.lidar.georef import georeference
+from accelcal_ros.lidar.poses import PoseStream
+import numpy as np
+
+
+class CloudAssembler:
+    """Buffer poses and scans; georeference scans once the poses cover them."""
+
+    def __init__(self, boresight, lever_arm_m=(0.0, 0.0, 0.0), time_field=None,
+                 pose_buffer_s=30.0, max_wait_s=0.5, max_points=5_000_000):
+        self.boresight = np.asarray(boresight, dtype=float)
+        self.lever_arm_m = np.asarray(lever_arm_m, dtype=float)
+        self.time_field = time_field or None
+        self.pose_buffer_s = pose_buffer_s
+        self.max_wait_s = max_wait_s
+        self.max_points = max_points
+        self._poses = deque()
+        self._pending = deque()
+        self._map = deque()
+        self._map_points = 0
+        self.rejected_poses = 0
+        self.totals = {'points': 0, 'kept': 0, 'before': 0, 'after': 0, 'non_finite': 0,
+                       'scans': 0}
+
+    def add_pose(self, t, position, quat_xyzw):
+        """Append a pose; returns None or the reason it was rejected (out of order, NaN)."""
+        values = np.concatenate([[t], position, quat_xyzw]).astype(float)
+        if not np.all(np.isfinite(values)):
+            self.rejected_poses += 1
+            return 'pose contains NaN'
+        if abs(np.linalg.norm(quat_xyzw) - 1.0) > 1e-3:
+            self.rejected_poses += 1
+            return f'quaternion norm {np.linalg.norm(quat_xyzw):.4f} is not 1'
+        if self._poses and t <= self._poses[-1][0]:
+            self.rejected_poses += 1
+            return (f'pose at {t:.6f} s is not after the previous one ({self._poses[-1][0]:.6f}'
+                    ' s): odometry out of order, dropped')
+        self._poses.append((float(t), np.asarray(position, float), np.asarray(quat_xyzw, float)))
+        while self._poses and self._poses[0][0] < t - self.pose_buffer_s:
+            self._poses.popleft()
+        return None
+
+    def add_scan(self, stamp_s, cloud, now_s):
+        """Queue a scan; raises InputError when it has no per-point time field."""
+        times = point_times(cloud, stamp_s, self.time_field)
+        self._pending.append((now_s, cloud, times))
+
+    def pose_stream(self):
+        """Return the buffered poses as a PoseStream (None with fewer than 2)."""
+        if len(self._poses) < 2:
+            return None
+        t = np.array([p[0] for p in self._poses])
+        return PoseStream(t, np.array([p[1] for p in self._poses]),
+                          np.array([p[2] for p in self._poses]))
+
+    def process(self, now_s, force=False):
+        """Georeference every ready scan; returns ``[(cloud_nav, stats)]``."""
+        out = []
+        while self._pending:
+            queued, cloud, times = self._pending[0]
+            newest = self._poses[-1][0] if self._poses else -np.inf
+            finite_t = times[np.isfinite(times)]
+            last = finite_t.max() if finite_t.size else -np.inf
+            if not force and newest < last and now_s - queued < self.max_wait_s:
+                break
+            self._pending.popleft()
+            out.append(self._georeference(cloud, times))
+        return out
+
+    def _georeference(self, cloud, times):
+        poses = self.pose_stream()
+        names = cloud.dtype.names
+        if poses is None:
+            pts, keep = np.zeros((0, 3)), np.zeros(len(cloud), dtype=bool)
+            stats = None
+        else:
+            pts, keep, stats = georeference(xyz(cloud), times, poses, self.boresight,
+                                            self.lever_arm_m)
+        nav = make_cloud(pts, cloud['intensity'][keep] if 'intensity' in names else None,
+                         cloud['ring'][keep] if 'ring' in names else None, times[keep],
+                         'timestamp', double=True)
+        self.totals['scans'] += 1
+        self.totals['points'] += len(cloud)
+        if stats is None:
+            self.totals['before'] += len(cloud)
+        else:
+            self.totals['kept'] += stats.kept
+            self.totals['before'] += stats.before_span
+            self.totals['after'] += stats.after_span
+            self.totals['non_finite'] += stats.non_finite
+        if len(nav):
+            self._map.append(nav)
+            self._map_points += len(nav)
+            while self._map_points > self.max_points and len(self._map) > 1:
+                self._map_points -= len(self._map.popleft())
+        return nav, stats
+
+    def map_cloud(self):
+        """Return every accumulated georeferenced point as one structured array."""
+        if not self._map:
+            return make_cloud(np.zeros((0, 3)), None, None, np.zeros(0), 'timestamp',
+                              double=True)
+        return np.concatenate(list(self._map))
+
+    def summary(self):
+        """Return a one-line summary of what was processed."""
+        t = self.totals
+        return (f'{t["scans"]} scans, {t["kept"]} of {t["points"]} points georeferenced '
+                f'({t["before"]} before / {t["after"]} after the poses, {t["non_finite"]} '
+                f'non-finite dropped), {self.rejected_poses} poses rejected')
+
+
+def check_time_field(cloud, field=None):
+    """Raise InputError when a scan has no per-point time (see cloud.time_field_of)."""
+    from accelcal_ros.lidar.cloud import time_field_of
+
+    if cloud.dtype.names is None:
+        raise InputError('scan is not a structured array')
+    return time_field_of(cloud, field)

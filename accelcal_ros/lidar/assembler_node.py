@@ -1,0 +1,177 @@
+"""
+Node ``cloud_assembler``: georeferenced point cloud from scans and navigation odometry.
+
+Subscribes ``points`` (sensor_msgs/PointCloud2 with a per-point time field ``time`` (s,
+relative to the header stamp), ``t`` (ns, relative) or ``timestamp`` (s, absolute);
+best effort, or reliable with ``points_reliable``) and ``odom`` (nav_msgs/Odometry: pose
+of the IMU body, ``child_frame_id``, in the navigation frame ``header.frame_id``;
+reliable QoS depth 200). Publishes each
+georeferenced scan on ``points_georef`` (PointCloud2 in the navigation frame, fields
+x y z [intensity ring] timestamp). ``cloud_assembler/save`` (std_srvs/Trigger) writes
+the accumulated cloud to ``output_file`` (.ply or .pcd, atomic), as does shutdown.
+Frames and equation: :mod:`accelcal_ros.lidar.georef`.
+"""
+import threading
+import time
+
+from accelcal_ros.errors import AccelcalError
+from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.rosutil.params import ParameterSet
+from accelcal_ros.rosutil.pointcloud2 import array_to_pointcloud2, pointcloud2_to_array
+from accelcal_ros.rosutil.runner import run
+from accelcal_ros.rosutil.stamps import seconds_to_stamp, stamp_to_seconds
+from builtin_interfaces.msg import Time
+from nav_msgs.msg import Odometry
+import numpy as np
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
+
+
+def _len3(value):
+    return None if len(value) == 3 else 'expected 3 values'
+
+
+SPECS = [
+    ParamSpec('boresight_file', '', 'boresight YAML (R or rpy_deg, LiDAR -> IMU); empty = '
+              'use boresight_rpy_deg', read_only=True),
+    ParamSpec('boresight_rpy_deg', [0.0, 0.0, 0.0], 'boresight LiDAR -> IMU (roll pitch '
+              'yaw, deg, REP-103 fixed axes) when no file is given', validator=_len3,
+              read_only=True, unit='deg'),
+    ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame',
+              validator=_len3, read_only=True, unit='m'),
+    ParamSpec('time_field', '', 'per-point time field (empty = time, t or timestamp)',
+              read_only=True),
+    ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
+    ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply or .pcd; '
+              'empty = none)'),
+    ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
+              minimum=0.0, maximum=10.0, unit='s'),
+    ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,
+              maximum=3600.0, unit='s', read_only=True),
+    ParamSpec('points_reliable', False, 'subscribe to points with reliable QoS (drivers that '
+              'publish reliable; large scans are retransmitted instead of lost)',
+              read_only=True),
+    ParamSpec('queue_depth', 20, 'scans queued by the subscription and the publisher',
+              minimum=1, maximum=1000, read_only=True),
+    ParamSpec('max_points', 5000000, 'accumulated points kept for saving', minimum=1000,
+              maximum=200000000, read_only=True),
+]
+
+
+class CloudAssemblerNode(Node):
+    """Thin wiring around :class:`~accelcal_ros.lidar.assembler.CloudAssembler`."""
+
+    def __init__(self):
+        super().__init__('cloud_assembler')
+        self.params = ParameterSet(self, SPECS)
+        from accelcal_ros.frames import rotation_from_rpy_radians
+        from accelcal_ros.lidar.assembler import CloudAssembler
+        from accelcal_ros.lidar.boresight import load_boresight
+
+        p = self.params
+        boresight = (load_boresight(p['boresight_file']) if p['boresight_file'] else
+                     rotation_from_rpy_radians(*np.radians(p['boresight_rpy_deg'])))
+        self._core = CloudAssembler(boresight, p['lever_arm_m'], p['time_field'] or None,
+                                    p['pose_buffer_s'], p['max_wait_s'], p['max_points'])
+        self._lock = threading.Lock()
+        self._nav_frame = 'map'
+        self._warned = set()
+        self._pub = self.create_publisher(PointCloud2, 'points_georef', p['queue_depth'])
+        reliability = (ReliabilityPolicy.RELIABLE if p['points_reliable']
+                       else ReliabilityPolicy.BEST_EFFORT)
+        scans_qos = QoSProfile(depth=p['queue_depth'], reliability=reliability,
+                               history=HistoryPolicy.KEEP_LAST)
+        self.create_subscription(PointCloud2, 'points', self._on_cloud, scans_qos,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_subscription(Odometry, 'odom', self._on_odom, 200,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(Trigger, 'cloud_assembler/save', self._on_save)
+        self.create_timer(0.02, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info('boresight rpy (deg) '
+                               f'{np.round(np.degrees(_rpy(boresight)), 4).tolist()}, lever '
+                               f'arm {p["lever_arm_m"]} m')
+
+    def _warn_once(self, key, text):
+        if key not in self._warned:
+            self._warned.add(key)
+            self.get_logger().warning(text)
+
+    def _on_odom(self, msg):
+        pose = msg.pose.pose
+        q = pose.orientation
+        with self._lock:
+            reason = self._core.add_pose(stamp_to_seconds(msg.header.stamp),
+                                         [pose.position.x, pose.position.y, pose.position.z],
+                                         [q.x, q.y, q.z, q.w])
+            if msg.header.frame_id:
+                self._nav_frame = msg.header.frame_id
+        if reason:
+            self._warn_once('odom', f'{reason} (further rejections are counted, not logged)')
+
+    def _on_cloud(self, msg):
+        try:
+            cloud = pointcloud2_to_array(msg)
+            with self._lock:
+                self._core.add_scan(stamp_to_seconds(msg.header.stamp), cloud, time.monotonic())
+        except AccelcalError as exc:
+            self._warn_once('scan', f'scan dropped: {exc}')
+
+    def _on_timer(self):
+        with self._lock:
+            done = self._core.process(time.monotonic())
+            frame = self.params['frame_id'] or self._nav_frame
+        for nav, stats in done:
+            if stats is None:
+                self._warn_once('nopose', 'scan dropped: no odometry received yet')
+                continue
+            if not len(nav):
+                continue
+            if stats.before_span or stats.after_span:
+                self._warn_once('span', f'{stats.summary()} (points outside the odometry '
+                                        'are dropped, never extrapolated)')
+            header = Header()
+            header.frame_id = frame
+            if len(nav):
+                header.stamp = seconds_to_stamp(float(nav['timestamp'][0]), Time)
+            self._pub.publish(array_to_pointcloud2(nav, PointCloud2, PointField, header))
+
+    def _save(self):
+        path = self.params['output_file']
+        if not path:
+            return False, 'output_file is empty: set it to a .ply or .pcd path'
+        from accelcal_ros.lidar.cloud import write_cloud
+
+        with self._lock:
+            cloud = self._core.map_cloud()
+            summary = self._core.summary()
+        try:
+            write_cloud(path, cloud)
+        except (AccelcalError, OSError) as exc:
+            return False, f'cannot write {path}: {exc}'
+        return True, f'wrote {len(cloud)} points to {path}; {summary}'
+
+    def _on_save(self, request, response):
+        response.success, response.message = self._save()
+        self.get_logger().info(response.message)
+        return response
+
+    def close(self):
+        """Write the accumulated cloud at shutdown (when output_file is set)."""
+        if self.params['output_file']:
+            ok, message = self._save()
+            print(f'[cloud_assembler] {message}', flush=True)
+
+
+def _rpy(rotation):
+    from accelcal_ros.frames import rpy_radians_from_rotation
+
+    return rpy_radians_from_rotation(rotation)
+
+
+def main(args=None):
+    """Run the ``cloud_assembler`` node."""
+    return run(CloudAssemblerNode, args)
