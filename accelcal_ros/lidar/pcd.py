@@ -16,6 +16,7 @@ import os
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.lidar import lzf
+from accelcal_ros.lidar.header import header_lines
 import numpy as np
 
 _TYPE_CODES = {('F', 4): 'f4', ('F', 8): 'f8', ('U', 1): 'u1', ('U', 2): 'u2', ('U', 4): 'u4',
@@ -58,16 +59,8 @@ def _dtype_from_header(path, header, lines):
 
 def _parse_header(path, raw):
     header, lines = {}, {}
-    offset = 0
-    line_no = 0
-    while True:
-        end = raw.find(b'\n', offset)
-        if end < 0:
-            raise FileFormatError(path, 'header ends before the DATA line (truncated file?)',
-                                  line_no + 1)
-        line_no += 1
-        text = raw[offset:end].decode('ascii', errors='replace').strip()
-        offset = end + 1
+    for line_no, text, offset in header_lines(
+            path, raw, 'header ends before the DATA line (truncated file?)'):
         if not text or text.startswith('#'):
             continue
         parts = text.split()

@@ -10,6 +10,7 @@ import os
 
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_bytes_atomic
+from accelcal_ros.lidar.header import header_lines
 import numpy as np
 
 _PLY_TYPES = {'char': 'i1', 'int8': 'i1', 'uchar': 'u1', 'uint8': 'u1', 'short': 'i2',
@@ -29,17 +30,10 @@ def read_ply(path):
         raw = handle.read()
     if not raw.startswith(b'ply'):
         raise FileFormatError(path, 'not a PLY file (first line is not "ply")', 1)
-    offset, line_no = 0, 0
     fmt = None
     elements = []
-    while True:
-        end = raw.find(b'\n', offset)
-        if end < 0:
-            raise FileFormatError(path, 'header has no end_header line (truncated file?)',
-                                  line_no + 1)
-        line_no += 1
-        text = raw[offset:end].decode('ascii', errors='replace').strip()
-        offset = end + 1
+    for line_no, text, offset in header_lines(
+            path, raw, 'header has no end_header line (truncated file?)'):
         parts = text.split()
         if not parts or parts[0] in ('ply', 'comment', 'obj_info'):
             continue

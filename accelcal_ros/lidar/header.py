@@ -1,0 +1,21 @@
+"""Walk the text header at the start of a (possibly binary) point-cloud file."""
+from accelcal_ros.errors import FileFormatError
+
+
+def header_lines(path, raw, missing_end):
+    """
+    Yield ``(line_no, text, offset)`` for each header line of ``raw`` (bytes).
+
+    ``line_no`` counts from 1, ``text`` is the stripped ASCII line and ``offset`` the byte
+    offset just after it (where the data starts once the caller sees the last header
+    line). Running out of lines raises ``FileFormatError(path, missing_end, line)``.
+    """
+    offset, line_no = 0, 0
+    while True:
+        end = raw.find(b'\n', offset)
+        if end < 0:
+            raise FileFormatError(path, missing_end, line_no + 1)
+        line_no += 1
+        text = raw[offset:end].decode('ascii', errors='replace').strip()
+        offset = end + 1
+        yield line_no, text, offset
