@@ -202,7 +202,7 @@ def run(ctx):
         'min_positions': 3, 'points_reliable': True,
         'clouds_per_capture': PACKETS_PER_REVOLUTION})
     picks = [1, 2, 5, 7, 12] if not ctx.quick else [2, 7, 12]
-    drive_static_positions(graph, protocol, picks, say=say, prefix='lidar_demo/')
+    drive_static_positions(graph, protocol, picks, still_s=2.4, say=say, prefix='lidar_demo/')
     response = graph.call(Trigger, 'lidar_calibration/finish', timeout=30.0)
     time.sleep(0.2)
     for line in proc.output().splitlines():
@@ -210,6 +210,8 @@ def run(ctx):
             say('  [lidar_calibration] ' + line.split(']: ')[-1])
     say(f'  finish -> success={response.success}: {response.message}')
     proc.stop()
+    if not response.success:
+        raise RuntimeError(f'lidar_calibration finish failed: {response.message}')
 
     say('--- cloud_assembler node on a moving platform (odometry 200 Hz, VLP-16 at 10 Hz '
         'sent as 40 Hz packets, played at half speed) ---')

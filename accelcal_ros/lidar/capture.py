@@ -107,7 +107,8 @@ class StaticCapture:
         always judged against the stillness at its own time.
         """
         self._pending.append((float(t), np.asarray(points, dtype=float).reshape(-1, 3)))
-        del self._pending[:-10]
+        # keep enough scans for one capture (packetised drivers send many small ones)
+        del self._pending[:-max(10, 2 * self.settings.clouds_per_capture)]
         return self._drain()
 
     def _drain(self):
