@@ -1,5 +1,15 @@
-"""Walk the text header at the start of a (possibly binary) point-cloud file."""
+"""Read a point-cloud file and walk the text header at its start (PCD and PLY)."""
+import os
+
 from accelcal_ros.errors import FileFormatError
+
+
+def read_file_bytes(path):
+    """Return the whole content of ``path``; FileFormatError when it does not exist."""
+    if not os.path.exists(path):
+        raise FileFormatError(path, 'file not found')
+    with open(path, 'rb') as handle:
+        return handle.read()
 
 
 def header_lines(path, raw, missing_end):

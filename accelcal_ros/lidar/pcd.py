@@ -16,7 +16,7 @@ import os
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.lidar import lzf
-from accelcal_ros.lidar.header import header_lines
+from accelcal_ros.lidar.header import header_lines, read_file_bytes
 import numpy as np
 
 _TYPE_CODES = {('F', 4): 'f4', ('F', 8): 'f8', ('U', 1): 'u1', ('U', 2): 'u2', ('U', 4): 'u4',
@@ -77,10 +77,7 @@ def _parse_header(path, raw):
 def read_pcd(path):
     """Return ``(cloud, meta)``: a structured array and ``{'viewpoint', 'data', 'width'}``."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileFormatError(path, 'file not found')
-    with open(path, 'rb') as handle:
-        raw = handle.read()
+    raw = read_file_bytes(path)
     header, lines, offset, data_line = _parse_header(path, raw)
     if 'FIELDS' not in header:
         raise FileFormatError(path, 'header lacks the FIELDS line')

@@ -10,7 +10,7 @@ import os
 
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_bytes_atomic
-from accelcal_ros.lidar.header import header_lines
+from accelcal_ros.lidar.header import header_lines, read_file_bytes
 import numpy as np
 
 _PLY_TYPES = {'char': 'i1', 'int8': 'i1', 'uchar': 'u1', 'uint8': 'u1', 'short': 'i2',
@@ -24,10 +24,7 @@ _WRITE_NAMES = {'i1': 'char', 'u1': 'uchar', 'i2': 'short', 'u2': 'ushort', 'i4'
 def read_ply(path):
     """Return the ``vertex`` element of a PLY file as a structured array."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileFormatError(path, 'file not found')
-    with open(path, 'rb') as handle:
-        raw = handle.read()
+    raw = read_file_bytes(path)
     if not raw.startswith(b'ply'):
         raise FileFormatError(path, 'not a PLY file (first line is not "ply")', 1)
     fmt = None
