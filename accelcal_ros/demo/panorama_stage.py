@@ -74,7 +74,11 @@ def run(ctx):
     topics = [f'cam{i}/image_raw' for i in range(5)]
     proc = ctx.graph.start('stitcher', params={
         'rig_file': rig_file, 'width': geometry.width, 'height': geometry.height,
-        'camera_topics': topics, 'stale_timeout_s': 0.8, 'image_reliability': 'reliable'})
+        'camera_topics': topics, 'stale_timeout_s': 0.8, 'image_reliability': 'reliable',
+        # this demo sends one attitude per frame set (5 Hz) with large swings between sets,
+        # not a 100 Hz IMU stream: only the attitude of the frames' own instant is right,
+        # so match it tightly and allow it time to arrive on a loaded machine
+        'attitude_tolerance_s': 0.01, 'attitude_wait_s': 0.2})
     node = ctx.graph.node
     pubs = [node.create_publisher(Image, t, 5) for t in topics]
     att_pub = node.create_publisher(Vector3Stamped, 'attitude', 10)
