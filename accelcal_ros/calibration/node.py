@@ -86,40 +86,27 @@ class CalibrationNode(Node):
             self.calibrator.start()
         except AccelcalError as exc:
             return self._refuse(response, exc)
-        self.last_event = 'session started'
-        response.success = True
-        response.message = (f'calibration started ({self.calibrator.config.model} model): '
-                            f'hold the sensor still in at least {self.calibrator.needed} '
-                            'well spread orientations (auto capture '
-                            f'{"on" if self.calibrator.config.auto_capture else "off"})')
-        self.get_logger().info(response.message)
-        self._publish_status()
-        return response
+        return self._accept(
+            response, f'calibration started ({self.calibrator.config.model} model): '
+            f'hold the sensor still in at least {self.calibrator.needed} '
+            'well spread orientations (auto capture '
+            f'{"on" if self.calibrator.config.auto_capture else "off"})',
+            event='session started')
 
     def _on_capture(self, request, response):
         try:
             cap = self.calibrator.capture_now()
         except AccelcalError as exc:
             return self._refuse(response, exc)
-        response.success = True
-        response.message = (f'captured position {cap.index} ({cap.samples} samples so far; '
-                            'it keeps averaging until the sensor moves)')
-        self.last_event = response.message
-        self.get_logger().info(response.message)
-        self._publish_status()
-        return response
+        return self._accept(response, f'captured position {cap.index} ({cap.samples} '
+                            'samples so far; it keeps averaging until the sensor moves)')
 
     def _on_cancel(self, request, response):
         try:
             count = self.calibrator.cancel()
         except AccelcalError as exc:
             return self._refuse(response, exc)
-        response.success = True
-        response.message = f'calibration cancelled; {count} positions discarded'
-        self.last_event = response.message
-        self.get_logger().info(response.message)
-        self._publish_status()
-        return response
+        return self._accept(response, f'calibration cancelled; {count} positions discarded')
 
     def _on_finish(self, request, response):
         try:
@@ -137,10 +124,13 @@ class CalibrationNode(Node):
         for warning in result.warnings:
             self.get_logger().warning(warning)
         applied = self._apply_to_attitude(result)
+        return self._accept(response, f'{result.summary()}; saved to {path}; {applied}')
+
+    def _accept(self, response, message, event=None):
         response.success = True
-        response.message = f'{result.summary()}; saved to {path}; {applied}'
-        self.last_event = response.message
-        self.get_logger().info(response.message)
+        response.message = message
+        self.last_event = event or message
+        self.get_logger().info(message)
         self._publish_status()
         return response
 
