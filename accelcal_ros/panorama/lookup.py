@@ -32,18 +32,21 @@ Two builders give the same map:
 - :meth:`LookupBuilder.build_exact` evaluates every pixel (about a second at 3600x2400).
 - :meth:`LookupBuilder.build_fast` evaluates exactly a coarse grid of nodes every
   ``grid_step`` pixels and classifies each cell (:meth:`LookupBuilder.classify`) as
-  *pure* -- the same camera around it, within the mosaic gap around that camera's
+  *pure* -- the same camera at its corners, within the mosaic gap around that camera's
   frame, and a bilinear interpolation error, estimated from the nodes' second
-  differences or, where those straddle a seam, measured at the cell's centre and edge
-  midpoints, within the tolerance (the centre of a quadratic is where its bilinear
-  error peaks; the margins cover higher-order terms) --, *empty* (outside the frame on
+  differences (next to a seam, from the stencil on the cell's side of it) or, where
+  that fails, measured at the cell's centre and edge midpoints, within 3/4 of the
+  tolerance (the centre of a quadratic is where its bilinear error peaks; the margin
+  covers higher-order terms) --, *empty* (outside the frame on
   one side, or, across a seam, every camera present has a point farther out of its
   frame than a cell can extend) or *mixed*. Pure cells are interpolated bilinearly by
   one ``cv2.resize`` of the node map (a cell across a frame edge is pure: its outer part
   lands in the black gap), empty cells are set to "outside", mixed cells (seams between
   cameras, the panorama border) are refined by sub-blocks of a few pixels, classified
   the same way from their exactly evaluated corners and centre, and evaluated pixel by
-  pixel only where a seam crosses a sub-block. Only rows some camera sees are built.
+  pixel only where a seam crosses a sub-block. Only rows some camera can see are
+  evaluated (:meth:`LookupBuilder.seen_rows` bounds them beforehand from the frames'
+  borders) and built.
   ``test/panorama/test_lookup.py`` measures the maximum error over every pixel against
   :meth:`LookupBuilder.build_exact`.
 """
@@ -303,6 +306,7 @@ class LookupBuilder:
         self._pool = None
         self._buffer = None
         self._resize_pool = None
+        self._borders = [self._border_rays(c) for c in rig.cameras]
         self.band = (0, geometry.height)
         self.last_stats = {}
 
@@ -323,6 +327,60 @@ class LookupBuilder:
             if width % s == 0:
                 return s
         return step
+
+    @staticmethod
+    def _border_rays(camera, per_side=128):
+        """
+        Rays (camera frame, unit, ``(3, 4 per_side)``) around the frame's bilinear support.
+
+        The support is ``-1 <= x <= width``, ``-1 <= y <= height`` (:meth:`evaluate`'s
+        side code 0), walked once around. Returns ``(rays, half_gap_rad)``: the largest
+        angle between consecutive rays, halved, bounds how far any point of the border
+        lies from the nearest sample.
+        """
+        w, h = camera.width, camera.height
+        t = np.linspace(0.0, 1.0, per_side, endpoint=False)
+        xs = np.concatenate([-1.0 + t * (w + 1), np.full_like(t, w), w - t * (w + 1),
+                             np.full_like(t, -1.0)])
+        ys = np.concatenate([np.full_like(t, -1.0), -1.0 + t * (h + 1), np.full_like(t, h),
+                             h - t * (h + 1)])
+        xn, yn = normalized_from_pixels(camera, xs, ys)
+        rays = np.stack([xn, yn, np.ones_like(xn)])
+        rays /= np.linalg.norm(rays, axis=0)
+        cosine = np.clip(np.sum(rays * np.roll(rays, -1, axis=1), axis=0), -1.0, 1.0)
+        return rays, 0.5 * float(np.arccos(cosine).max())
+
+    def seen_rows(self, q):
+        """
+        Return ``(first, last + 1)``: a row range holding every pixel any camera sees.
+
+        ``q`` are :meth:`camera_rotations`. A frame's region on the sphere is bounded by
+        its border, so its highest and lowest points lie on the border (sampled, with the
+        sampling gap as margin) unless the region holds the zenith or the nadir, where
+        elevation peaks; both are tested by projecting them into the frame. Rows outside
+        the range need no evaluation: no camera sees them.
+        """
+        top, bottom = -np.inf, np.inf
+        poles = np.array([[0.0, 0.0], [-1.0, 1.0], [0.0, 0.0]], np.float32)  # zenith, nadir
+        for i, (rays, half_gap) in enumerate(self._borders):
+            pano = q[i].T @ rays  # camera -> panorama frame P (y down)
+            elevation = np.arcsin(np.clip(-pano[1], -1.0, 1.0))
+            high = float(elevation.max()) + half_gap
+            low = float(elevation.min()) - half_gap
+            side = self._evaluate_soa(poles, q, only=i)[3]
+            if side[0] == 0:
+                high = math.pi / 2
+            if side[1] == 0:
+                low = -math.pi / 2
+            top, bottom = max(top, high), min(bottom, low)
+        g = self.geometry
+        limit = np.radians(g.fov_v_deg) / 2 if g.projection == 'spherical' else \
+            np.radians(89.9)
+        first = g.row_from_elevation(min(float(top), limit))
+        last = g.row_from_elevation(max(float(bottom), -limit))
+        first = max(0, int(math.floor(first)) - 1)
+        last = min(g.height, int(math.ceil(last)) + 2)
+        return (first, last) if last > first else (0, 0)
 
     # -- geometry -------------------------------------------------------------------------
     def camera_rotations(self, roll, pitch):
@@ -382,11 +440,13 @@ class LookupBuilder:
             yn = (qi[1, 0] * sx + qi[1, 1] * sy + qi[1, 2] * sz) * inv
             r2 = xn * xn + yn * yn
             invalid = ~front | (r2 > self._limits2[i])
-            if cam.has_distortion():
-                xn, yn = distort_normalized(xn, yn, cam.D.astype(np.float32))
-            k = cam.K.astype(np.float32)
-            px = k[0, 0] * xn + k[0, 1] * yn + k[0, 2]
-            py = k[1, 1] * yn + k[1, 2]
+            # rays nearly perpendicular to the axis (invalid: past the limit) may overflow
+            with np.errstate(over='ignore', invalid='ignore'):
+                if cam.has_distortion():
+                    xn, yn = distort_normalized(xn, yn, cam.D.astype(np.float32))
+                k = cam.K.astype(np.float32)
+                px = k[0, 0] * xn + k[0, 1] * yn + k[0, 2]
+                py = k[1, 1] * yn + k[1, 2]
             code = (px <= -1.0).view(np.uint8) * np.uint8(_SIDE_LEFT)
             code |= (px >= cam.width).view(np.uint8) * np.uint8(_SIDE_RIGHT)
             code |= (py <= -1.0).view(np.uint8) * np.uint8(_SIDE_TOP)
@@ -511,26 +571,38 @@ class LookupBuilder:
         self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
         return map1, map2, weight
 
-    def classify(self, q):
+    def classify(self, q, node_rows=None):
         """
         Classify the cells from the exact values at the nodes (and, where needed, more).
 
         Returns ``(node_map, empty, exact, pure)``: ``node_map`` ``(n_h, n_w, 2)`` holds
         the nodes' mosaic coordinates (what pure cells interpolate); the masks are per
-        cell. Most cells are decided from the nodes alone: the same camera at the 4x4
-        nodes around the cell, all valid, the 4 corners within the gap around its frame,
-        and the bilinear error estimated from the second differences of the nodes,
-        ``(|d2_u| + |d2_v|) / 8`` (the error at the centre of a quadratic), below half the
-        tolerance -> pure; every camera present with a corner farther out than a cell
+        cell. Most cells are decided from the nodes alone: the same camera at the 4
+        corners, all valid and within the gap around its frame, and the bilinear error
+        estimated from the second differences at the corners, ``(|d2_u| + |d2_v|) / 8``
+        (the error at the centre of a quadratic; where a corner's three-node stencil
+        crosses a seam, the next stencil along, which holds that corner and so lies on
+        its camera's side), within 3/4 of the tolerance -> pure; every camera present
+        with a corner farther out than a cell
         reaches, or all corners outside on one side by more than a pixel -> empty. The
         other cells (seams, frame edges, the border) get their centre and edge midpoints
         evaluated: pure if the same camera is at all nine points, all near, with the
         bilinear error at the centre and midpoints within 3/4 of the tolerance.
+
+        ``node_rows = (k0, k1)`` restricts the work to node rows ``k0 .. k1 - 1`` (at
+        least 3): the arrays returned then cover those nodes and the cells between them
+        (cell row ``j`` is the grid's ``k0 + j``). The first and last of those cell rows
+        lack the nodes beyond them for the second differences and are decided the slow
+        way.
         """
-        tw, th = self._tiles_w, self._tiles_h
+        tw = self._tiles_w
+        k0, k1 = (0, self._tiles_h + 2) if node_rows is None else node_rows
+        th = k1 - k0 - 2
+        if th < 1:
+            raise ValueError(f'node_rows {node_rows!r}: need at least 3 node rows')
         shape_n, shape_c = (th + 2, tw + 2), (th + 1, tw + 1)
-        n_label, n_x, n_y, n_side = (a.reshape(shape_n) for a in
-                                     self.evaluate_parallel(self._node_soa, q))
+        n_label, n_x, n_y, n_side = (a.reshape(shape_n) for a in self.evaluate_parallel(
+            self._node_soa[:, k0 * (tw + 2):k1 * (tw + 2)], q))
         size = self._sizes[n_label]
         m = self._margin
         valid = (n_side & _SIDE_INVALID) == 0
@@ -564,6 +636,11 @@ class LookupBuilder:
         d2v = np.maximum(np.abs(n_x[:-2] - 2 * n_x[1:-1] + n_x[2:]),
                          np.abs(n_y[:-2] - 2 * n_y[1:-1] + n_y[2:]))
         d2v = np.where(smooth, d2v, np.inf)  # (th, tw + 2): node rows 1..th
+        # Next to a seam or an invalid node, a node's three-point stencil fails; the
+        # stencil one node further on (same camera, same curvature to first order)
+        # stands in, so that only cells a seam crosses need the slow path.
+        d2u = self._fill_from_neighbours(d2u, axis=1)
+        d2v = self._fill_from_neighbours(d2v, axis=0)
         estimate = np.full(shape_c, np.inf, np.float32)
         inner = (slice(1, -1), slice(1, -1))  # cells whose 4x4 stencil exists
         est = np.zeros((th - 1, tw - 1), np.float32)
@@ -573,7 +650,7 @@ class LookupBuilder:
                 dv = d2v[di:th - 1 + di, 1 + dj:tw + dj]
                 est = np.maximum(est, (du + dv) / 8.0)
         estimate[inner] = est
-        quick_pure = same4 & near4 & (estimate <= 0.5 * self.tolerance_px)
+        quick_pure = same4 & near4 & (estimate <= limit)
         n_far = self._far_outside(n_label, n_x, n_y, n_side)
         covered = self._witnessed([n_label[rs, cs] for rs, cs in corners],
                                   [n_far[rs, cs] for rs, cs in corners], shape_c)
@@ -590,7 +667,8 @@ class LookupBuilder:
             k_label = [n_label[ij] for ij in corner_ids]
             k_x = [n_x[ij] for ij in corner_ids]
             k_y = [n_y[ij] for ij in corner_ids]
-            c_label, c_x, c_y, c_side = self.evaluate_parallel(self._centre_soa[:, f_idx], q)
+            c_label, c_x, c_y, c_side = self.evaluate_parallel(
+                self._centre_soa[:, f_idx + k0 * (tw + 1)], q)
             same = np.ones(f_idx.size, bool)
             all_near = (c_side & _SIDE_INVALID) == 0
             common5 = c_side.copy()
@@ -607,10 +685,10 @@ class LookupBuilder:
             if cand.size:
                 ca, cb = fa[cand], fb[cand]
                 # midpoints: top, bottom (horizontal edges), left, right (vertical edges)
-                h_top = ca * (tw + 1) + cb
-                h_bottom = (ca + 1) * (tw + 1) + cb
-                v_left = ca * (tw + 2) + cb
-                v_right = ca * (tw + 2) + cb + 1
+                h_top = (ca + k0) * (tw + 1) + cb
+                h_bottom = (ca + k0 + 1) * (tw + 1) + cb
+                v_left = (ca + k0) * (tw + 2) + cb
+                v_right = (ca + k0) * (tw + 2) + cb + 1
                 rays = np.concatenate([self._hmid_soa[:, h_top], self._hmid_soa[:, h_bottom],
                                        self._vmid_soa[:, v_left], self._vmid_soa[:, v_right]],
                                       axis=1)
@@ -641,6 +719,18 @@ class LookupBuilder:
                              'quick_empty': int(quick_empty.sum()),
                              'fallback': int(fallback.sum())}
         return node_map, empty, exact, pure
+
+    @staticmethod
+    def _fill_from_neighbours(d2, axis):
+        """Replace infinite second differences by the larger finite neighbour along ``axis``."""
+        d = d2 if axis == 1 else d2.T
+        finite = np.where(np.isfinite(d), d, -np.inf)
+        neighbour = np.full_like(d, -np.inf)
+        neighbour[:, 1:] = finite[:, :-1]
+        np.maximum(neighbour[:, :-1], finite[:, 1:], out=neighbour[:, :-1])
+        filled = np.where(np.isfinite(d), d, neighbour)
+        filled[filled == -np.inf] = np.inf
+        return filled if axis == 1 else filled.T
 
     def _witnessed(self, labels, fars, shape):
         """Return True where every camera present among the points has a far point."""
@@ -682,7 +772,7 @@ class LookupBuilder:
         s, half = self.step, self.step // 2
         tw, th = self._tiles_w, self._tiles_h
         q = self.camera_rotations(roll, pitch)
-        node_map, empty, exact, pure = self.classify(q)
+        node_map, empty, exact, pure = self._classify_seen_rows(q)
         t_grid = time.perf_counter()
         if self._buffer is None:
             self._buffer = np.empty((th * s, tw * s, 2), np.float32)
@@ -771,6 +861,34 @@ class LookupBuilder:
             'write_s': end - t_resize, 'exact_pixels': count, 'cells': int(pure.size),
             'pure_cells': int(pure.sum()), 'empty_cells': empty_cells, 'step': s}
         return buf[:self.geometry.height, :self.geometry.width]
+
+    def _classify_seen_rows(self, q):
+        """
+        :meth:`classify` over the cell rows :meth:`seen_rows` leaves; the others are empty.
+
+        Returns the full-size ``(node_map, empty, exact, pure)``.
+        """
+        s, half = self.step, self.step // 2
+        tw, th = self._tiles_w, self._tiles_h
+        node_map = np.full((th + 2, tw + 2, 2), OUTSIDE, np.float32)
+        empty = np.ones((th + 1, tw + 1), bool)
+        exact = np.zeros_like(empty)
+        pure = np.zeros_like(empty)
+        r0, r1 = self.seen_rows(q)
+        if r1 <= r0:
+            self.last_classes = {'quick_pure': 0, 'quick_empty': 0, 'fallback': 0}
+            return node_map, empty, exact, pure
+        # cell b covers rows [b s - s/2, b s + s/2); its second differences need the node
+        # rows b - 1 .. b + 2, so one more node row on each side than the cells' corners
+        c0, c1 = (r0 + half) // s, (r1 - 1 + half) // s
+        k0, k1 = max(0, c0 - 1), min(th + 2, c1 + 3)
+        if k1 - k0 < 3:
+            k0, k1 = max(0, k1 - 3), max(0, k1 - 3) + 3
+        part = self.classify(q, (k0, k1))
+        node_map[k0:k1] = part[0]
+        for full, local in zip((empty, exact, pure), part[1:]):
+            full[k0:k1 - 1] = local
+        return node_map, empty, exact, pure
 
     @staticmethod
     def _blocks(region, nby, bh, nbx, bw):

@@ -140,6 +140,27 @@ def test_fast_rebuild_matches_exact_within_tolerance(projection, size, step):
         assert np.array_equal(a > 0, b > 0) or (np.abs(a.astype(int) - b) > 40).sum() == 0
 
 
+@pytest.mark.parametrize('pitch_deg', [-80.0, -30.0, 0.0, 45.0, 85.0])
+def test_seen_rows_hold_every_seen_pixel_even_with_a_pole_in_a_frame(pitch_deg):
+    """The row range skipped by the fast builder holds no pixel any camera sees."""
+    rig = _rig()
+    geometry = PanoramaGeometry(720, 480, 180.0, 180.0)
+    builder = LookupBuilder(rig, geometry, grid_step=16)
+    pitch = math.radians(pitch_deg)
+    exact = builder.build_exact(0.1, pitch)
+    seen_rows = np.nonzero((exact[..., 0] != OUTSIDE).any(axis=1))[0]
+    r0, r1 = builder.seen_rows(builder.camera_rotations(0.1, pitch))
+    assert seen_rows.size and r0 <= seen_rows[0] and seen_rows[-1] < r1
+    if abs(pitch_deg) >= 80.0:  # a pole inside the reference frame: the range reaches it
+        assert (r0 == 0) if pitch_deg < 0 else (r1 == geometry.height)
+    else:  # and it is tight otherwise: within a few rows of what is seen
+        assert seen_rows[0] - r0 <= 8 and r1 - seen_rows[-1] <= 9
+    fast = builder.build_fast(0.1, pitch)
+    b0, b1 = builder.band
+    seen = exact[b0:b1, :, 0] != OUTSIDE
+    assert np.abs(fast[b0:b1] - exact[b0:b1]).max(axis=-1)[seen].max() <= 0.1 + 1e-4
+
+
 def test_fast_rebuild_error_bound_is_the_tolerance_parameter():
     """A looser tolerance gives more interpolated cells and an error still within it."""
     rig = _rig()
