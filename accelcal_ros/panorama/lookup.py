@@ -150,6 +150,23 @@ def normalized_from_pixels(camera, px, py):
     return undistort_normalized(xd, yd, camera.D)
 
 
+def frame_border_pixels(camera, outset=0.0, per_side=64):
+    """
+    Pixel coordinates ``(xs, ys)`` walking once around a frame, clockwise from top left.
+
+    The rectangle runs from ``-outset`` to ``width - 1 + outset`` (``height`` alike);
+    each side has ``per_side`` evenly spaced points, starting at its first corner.
+    """
+    x0, y0 = -outset, -outset
+    x1, y1 = camera.width - 1 + outset, camera.height - 1 + outset
+    t = np.linspace(0.0, 1.0, per_side, endpoint=False)
+    xs = np.concatenate([x0 + t * (x1 - x0), np.full_like(t, x1), x1 - t * (x1 - x0),
+                         np.full_like(t, x0)])
+    ys = np.concatenate([np.full_like(t, y0), y0 + t * (y1 - y0), np.full_like(t, y1),
+                         y1 - t * (y1 - y0)])
+    return xs, ys
+
+
 def frame_radius_and_limit2(camera):
     """
     Return the frame's largest normalized radius and the largest squared radius accepted.
@@ -159,11 +176,7 @@ def frame_radius_and_limit2(camera):
     ``DISTORTION_RADIUS_MARGIN`` times the largest undistorted radius of the frame's
     border, cut where the radial mapping stops increasing.
     """
-    w, h = camera.width, camera.height
-    t = np.linspace(0.0, 1.0, 65)
-    xs = np.concatenate([t * (w - 1), t * (w - 1), np.zeros_like(t), np.full_like(t, w - 1)])
-    ys = np.concatenate([np.zeros_like(t), np.full_like(t, h - 1), t * (h - 1), t * (h - 1)])
-    xn, yn = normalized_from_pixels(camera, xs, ys)
+    xn, yn = normalized_from_pixels(camera, *frame_border_pixels(camera))
     radius = float(np.sqrt(xn * xn + yn * yn).max())
     limit = radius * DISTORTION_RADIUS_MARGIN
     if camera.has_distortion():
@@ -338,13 +351,7 @@ class LookupBuilder:
         angle between consecutive rays, halved, bounds how far any point of the border
         lies from the nearest sample.
         """
-        w, h = camera.width, camera.height
-        t = np.linspace(0.0, 1.0, per_side, endpoint=False)
-        xs = np.concatenate([-1.0 + t * (w + 1), np.full_like(t, w), w - t * (w + 1),
-                             np.full_like(t, -1.0)])
-        ys = np.concatenate([np.full_like(t, -1.0), -1.0 + t * (h + 1), np.full_like(t, h),
-                             h - t * (h + 1)])
-        xn, yn = normalized_from_pixels(camera, xs, ys)
+        xn, yn = normalized_from_pixels(camera, *frame_border_pixels(camera, 1.0, per_side))
         rays = np.stack([xn, yn, np.ones_like(xn)])
         rays /= np.linalg.norm(rays, axis=0)
         cosine = np.clip(np.sum(rays * np.roll(rays, -1, axis=1), axis=0), -1.0, 1.0)
