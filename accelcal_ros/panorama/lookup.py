@@ -103,9 +103,10 @@ def distort_normalized(x, y, distortion):
     """
     Apply the OpenCV distortion model to normalized coordinates ``x = X/Z``, ``y = Y/Z``.
 
-    ``distortion`` is ``[k1, k2, p1, p2, k3]``; returns the distorted ``(x, y)``.
+    ``distortion`` is ``[k1, k2, p1, p2, k3]`` (numbers, or arrays broadcasting with
+    ``x``: one set per point); returns the distorted ``(x, y)``.
     """
-    k1, k2, p1, p2, k3 = (float(v) for v in distortion)
+    k1, k2, p1, p2, k3 = distortion
     r2 = x * x + y * y
     radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
     xy2 = 2.0 * x * y
@@ -274,11 +275,18 @@ class LookupBuilder:
                                  for c, (radius, lim) in zip(rig.cameras, radii)])
         self._invalid_is_far = frame_gap_px > self._far
         self._sizes = np.array([[c.width, c.height] for c in rig.cameras], dtype=np.float32)
+        # per camera: fx, skew, cx, fy, cy, k1, k2, p1, p2, k3, limit^2, width, height
+        self._camera_table = np.array(
+            [[c.K[0, 0], c.K[0, 1], c.K[0, 2], c.K[1, 1], c.K[1, 2], *c.D, lim, c.width,
+              c.height] for c, lim in zip(rig.cameras, self._limits2)], np.float32).T.copy()
         self._offsets = np.asarray(self.layout.offsets, dtype=np.float32)
         self._tiles_w = -(-geometry.width // s)
         self._tiles_h = -(-geometry.height // s)
-        cols = np.arange(self._tiles_w * s)
-        rows = np.arange(self._tiles_h * s)
+        # Separable ray tables of pixels -s .. n s + s - 1 per axis (index = pixel + s):
+        # the cells at the border reach half a cell beyond the panorama.
+        self._pad = s
+        cols = np.arange(-s, (self._tiles_w + 1) * s)
+        rows = np.arange(-s, (self._tiles_h + 1) * s)
         az = geometry.azimuth_rad(cols)
         el = geometry.elevation_rad(rows)
         self._sin_az = np.sin(az).astype(np.float32)
@@ -286,14 +294,19 @@ class LookupBuilder:
         self._sin_el = np.sin(el).astype(np.float32)
         self._cos_el = np.cos(el).astype(np.float32)
         # the same at pixel edges (continuous coordinate k - 1/2), for sub-block corners
-        az_e = geometry.azimuth_rad(np.arange(self._tiles_w * s + 1) - 0.5)
-        el_e = geometry.elevation_rad(np.arange(self._tiles_h * s + 1) - 0.5)
+        az_e = geometry.azimuth_rad(np.arange(-s, (self._tiles_w + 1) * s + 1) - 0.5)
+        el_e = geometry.elevation_rad(np.arange(-s, (self._tiles_h + 1) * s + 1) - 0.5)
         self._sin_az_e = np.sin(az_e).astype(np.float32)
         self._cos_az_e = np.cos(az_e).astype(np.float32)
         self._sin_el_e = np.sin(el_e).astype(np.float32)
         self._cos_el_e = np.cos(el_e).astype(np.float32)
         half_step = s // 2
         self.sub_step = next((d for d in (5, 4, 3, 2) if half_step % d == 0), 0)
+        # bilinear weights of a sub-block's pixels (row-major) on its corners 00, 01, 10, 11
+        f = (np.arange(max(1, self.sub_step)) + 0.5) / max(1, self.sub_step)
+        fy, fx = np.repeat(f, len(f)), np.tile(f, len(f))
+        self._sub_weights = np.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx),
+                                      fy * fx], axis=1).astype(np.float32)
         half = s // 2
         # Nodes (what cv2.resize interpolates) sit at pixel positions k*s + s/2 - 1/2,
         # k = 0..n-1; with the extra rows/columns at k = -1 and k = n they bound n + 1
@@ -369,16 +382,24 @@ class LookupBuilder:
         """
         top, bottom = -np.inf, np.inf
         poles = np.array([[0.0, 0.0], [-1.0, 1.0], [0.0, 0.0]], np.float32)  # zenith, nadir
+        # A pole outside a camera's accepted cone (behind it or past the distortion
+        # limit) is not in its frame; only a pole inside the cone is projected.
+        in_camera = np.einsum('nij,jk->nik', q, poles)  # (cameras, 3, 2)
+        depth = in_camera[:, 2]
+        safe = np.where(depth > 1e-6, depth, 1.0)
+        radius2 = (in_camera[:, 0] ** 2 + in_camera[:, 1] ** 2) / safe ** 2
+        in_cone = (depth > 1e-6) & (radius2 <= self._limits2[:, None])
         for i, (rays, half_gap) in enumerate(self._borders):
             pano = q[i].T @ rays  # camera -> panorama frame P (y down)
             elevation = np.arcsin(np.clip(-pano[1], -1.0, 1.0))
             high = float(elevation.max()) + half_gap
             low = float(elevation.min()) - half_gap
-            side = self._evaluate_soa(poles, q, only=i)[3]
-            if side[0] == 0:
-                high = math.pi / 2
-            if side[1] == 0:
-                low = -math.pi / 2
+            if in_cone[i].any():
+                side = self._evaluate_soa(poles, q, only=i)[3]
+                if side[0] == 0:
+                    high = math.pi / 2
+                if side[1] == 0:
+                    low = -math.pi / 2
             top, bottom = max(top, high), min(bottom, low)
         g = self.geometry
         limit = np.radians(g.fov_v_deg) / 2 if g.projection == 'spherical' else \
@@ -410,60 +431,50 @@ class LookupBuilder:
         return self._evaluate_soa(soa, rotations, only)
 
     def _evaluate_soa(self, rays, rotations, only=None):
-        """:meth:`evaluate` for rays stored as ``(3, N)`` float32 (element-wise, no BLAS)."""
+        """
+        :meth:`evaluate` for rays stored as ``(3, N)`` float32.
+
+        Every ray is rotated into every camera by one product (a few flops more than
+        needed, but a fixed, small number of numpy calls whatever the number of
+        cameras); each ray's camera constants are gathered from ``_camera_table``.
+        ``einsum``, not ``@``: a BLAS product of this size wakes OpenBLAS's threads,
+        which then spin and slow the ``cv2.remap`` that follows by a third.
+        """
         q = np.asarray(rotations, dtype=np.float32)
         n = rays.shape[1]
-        rx, ry, rz = rays
-        single = only is not None or len(q) == 1
-        target = (0 if only is None else only) if single else None
-        if single:
+        if only is not None or len(q) == 1:
+            target = 0 if only is None else int(only)
             label = np.full(n, target, np.intp)
+            cx, cy, cz = np.einsum('ij,jn->in', q[target], rays)
+            constants = self._camera_table[:, target]
         else:
+            every = np.einsum('ij,jn->in', q.reshape(-1, 3), rays).reshape(len(q), 3, n)
             # eq. 6: the largest z component in any camera (first camera on ties)
             label = np.zeros(n, np.intp)
-            best = q[0, 2, 0] * rx + q[0, 2, 1] * ry + q[0, 2, 2] * rz
+            best = every[0, 2].copy()
             for i in range(1, len(q)):
-                zi = q[i, 2, 0] * rx + q[i, 2, 1] * ry + q[i, 2, 2] * rz
-                label[zi > best] = i
-                np.maximum(best, zi, out=best)
-        x = np.zeros(n, np.float32)
-        y = np.zeros(n, np.float32)
-        side = np.zeros(n, np.uint8)
-        for i, cam in enumerate(self.rig.cameras):
-            if target is not None and i != target:
-                continue
-            idx = None if single else np.flatnonzero(label == i)
-            if single:
-                sx, sy, sz = rx, ry, rz
-            else:
-                if idx.size == 0:
-                    continue
-                sx, sy, sz = rays[:, idx]
-            qi = q[i]
-            cz = qi[2, 0] * sx + qi[2, 1] * sy + qi[2, 2] * sz
-            front = cz > 1e-6
-            inv = np.float32(1.0) / np.where(front, cz, np.float32(1.0))
-            xn = (qi[0, 0] * sx + qi[0, 1] * sy + qi[0, 2] * sz) * inv
-            yn = (qi[1, 0] * sx + qi[1, 1] * sy + qi[1, 2] * sz) * inv
-            r2 = xn * xn + yn * yn
-            invalid = ~front | (r2 > self._limits2[i])
-            # rays nearly perpendicular to the axis (invalid: past the limit) may overflow
-            with np.errstate(over='ignore', invalid='ignore'):
-                if cam.has_distortion():
-                    xn, yn = distort_normalized(xn, yn, cam.D.astype(np.float32))
-                k = cam.K.astype(np.float32)
-                px = k[0, 0] * xn + k[0, 1] * yn + k[0, 2]
-                py = k[1, 1] * yn + k[1, 2]
-            code = (px <= -1.0).view(np.uint8) * np.uint8(_SIDE_LEFT)
-            code |= (px >= cam.width).view(np.uint8) * np.uint8(_SIDE_RIGHT)
-            code |= (py <= -1.0).view(np.uint8) * np.uint8(_SIDE_TOP)
-            code |= (py >= cam.height).view(np.uint8) * np.uint8(_SIDE_BOTTOM)
-            code[invalid] = _SIDE_INVALID
-            if single:
-                x, y, side = px, py, code
-            else:
-                x[idx], y[idx], side[idx] = px, py, code
-        return label, x, y, side
+                label[every[i, 2] > best] = i
+                np.maximum(best, every[i, 2], out=best)
+            at = label * (3 * n) + np.arange(n)  # element (label, 0, i) of ``every``
+            flat = every.reshape(-1)
+            cx, cy, cz = flat.take(at), flat.take(at + n), flat.take(at + 2 * n)
+            constants = np.take(self._camera_table, label, axis=1)
+        fx, skew, ppx, fy, ppy, k1, k2, p1, p2, k3, limit2, width, height = constants
+        front = cz > 1e-6
+        inv = np.float32(1.0) / np.where(front, cz, np.float32(1.0))
+        xn, yn = cx * inv, cy * inv
+        invalid = ~front | (xn * xn + yn * yn > limit2)
+        # rays nearly perpendicular to the axis (invalid: past the limit) may overflow
+        with np.errstate(over='ignore', invalid='ignore'):
+            xn, yn = distort_normalized(xn, yn, (k1, k2, p1, p2, k3))
+            px = fx * xn + skew * yn + ppx
+            py = fy * yn + ppy
+        code = (px <= -1.0).view(np.uint8) * np.uint8(_SIDE_LEFT)
+        code |= (px >= width).view(np.uint8) * np.uint8(_SIDE_RIGHT)
+        code |= (py <= -1.0).view(np.uint8) * np.uint8(_SIDE_TOP)
+        code |= (py >= height).view(np.uint8) * np.uint8(_SIDE_BOTTOM)
+        code[invalid] = _SIDE_INVALID
+        return label, px, py, code
 
     def evaluate_parallel(self, rays, rotations, min_chunk=16384):
         """
@@ -497,6 +508,7 @@ class LookupBuilder:
 
     def _pixel_rays(self, u, v):
         """Rays ``(3, ...)`` float32 of integer pixel coordinates from the separable tables."""
+        u, v = u + self._pad, v + self._pad
         ce = self._cos_el[v]
         rays = np.empty((3,) + np.broadcast(u, v).shape, np.float32)
         np.multiply(ce, self._sin_az[u], out=rays[0])
@@ -505,7 +517,7 @@ class LookupBuilder:
         return rays
 
     # -- builders -------------------------------------------------------------------------
-    def build_exact(self, roll, pitch, with_labels=False, rows_per_chunk=128):
+    def build_exact(self, roll, pitch, with_labels=False, rows_per_chunk=8):
         """
         Evaluate every pixel: map ``(H, W, 2)`` float32 (and labels, -1 where unseen).
 
@@ -529,7 +541,7 @@ class LookupBuilder:
         self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
         return (out, labels) if with_labels else out
 
-    def build_blend(self, roll, pitch, width_rad, rows_per_chunk=64):
+    def build_blend(self, roll, pitch, width_rad, rows_per_chunk=8):
         """
         Exact maps for feathered blending: ``(map1, map2, weight1)``.
 
@@ -769,27 +781,33 @@ class LookupBuilder:
         """
         Return the map from the coarse grid, interpolation, and exact mixed cells.
 
-        The returned array is owned by the builder and overwritten by the next call.
-        Only the rows in :attr:`band` (``(first, last + 1)``, the rows some camera sees)
-        are defined; the others are left as they were.
+        The returned array is a view of a buffer owned by the builder (rows padded by one
+        cell on each side, so not contiguous) and is overwritten by the next call. Only
+        the rows in :attr:`band` (``(first, last + 1)``, the rows some camera sees) are
+        defined; the others are left as they were.
         """
         import cv2
 
         start = time.perf_counter()
         s, half = self.step, self.step // 2
         tw, th = self._tiles_w, self._tiles_h
+        height, width = self.geometry.shape
         q = self.camera_rotations(roll, pitch)
         node_map, empty, exact, pure = self._classify_seen_rows(q)
         t_grid = time.perf_counter()
+        # Buffer pixel (r, c) is panorama pixel (r - s, c - s): the nodes one cell beyond
+        # the panorama (k = -1 and k = n) sit inside it, so cv2.resize interpolates the
+        # half cells at the border as well, and every cell is a full s x s block.
         if self._buffer is None:
-            self._buffer = np.empty((th * s, tw * s, 2), np.float32)
+            self._buffer = np.empty(((th + 2) * s, (tw + 2) * s, 2), np.float32)
         buf = self._buffer
+        panorama = buf[s:s + height, s:s + width]
         # Only the rows of cells that some camera sees are built (and later remapped).
         active_rows = np.nonzero((~empty).any(axis=1))[0]
         if active_rows.size == 0:
             self.band = (0, 0)
             self.last_stats = {'total_s': time.perf_counter() - start, 'exact_pixels': 0}
-            return buf[:self.geometry.height, :self.geometry.width]
+            return panorama
         a0, a1 = int(active_rows[0]), int(active_rows[-1])
         # Nodes whose four cells are all empty are set to "outside": cv2.resize then
         # fills the cells between such nodes by itself, and only the ring of empty cells
@@ -799,13 +817,13 @@ class LookupBuilder:
         lonely = padded[:-1, :-1] & padded[1:, :-1] & padded[:-1, 1:] & padded[1:, 1:]
         node_map[lonely] = OUTSIDE
         done = lonely[:-1, :-1] & lonely[1:, :-1] & lonely[:-1, 1:] & lonely[1:, 1:]
-        done[0, :] = done[-1, :] = done[:, 0] = done[:, -1] = False  # border: clamped
         empty &= ~done
         empty[:a0] = empty[a1 + 1:] = False
         exact[:a0] = exact[a1 + 1:] = False
-        self.band = (max(0, a0 * s - half), min(self.geometry.height, a1 * s + half))
+        self.band = (max(0, a0 * s - half), min(height, a1 * s + half))
+        # node rows k0 - 1 .. k1 + 1 (node_map rows k0 .. k1 + 2) cover cell rows a0..a1
         k0, k1 = max(0, a0 - 2), min(th - 1, a1 + 1)
-        coarse = np.ascontiguousarray(node_map[k0 + 1:k1 + 2, 1:-1])
+        coarse = node_map[k0:k1 + 3]
         # The resize (OpenCV, no GIL) runs while numpy computes the cells it cannot do;
         # those are written into the buffer once it is done.
         if self._resize_pool is None:
@@ -814,60 +832,34 @@ class LookupBuilder:
             self._resize_pool = ThreadPoolExecutor(max_workers=1,
                                                    thread_name_prefix='lookup_resize')
         resized = self._resize_pool.submit(
-            cv2.resize, coarse, (tw * s, (k1 - k0 + 1) * s), dst=buf[k0 * s:(k1 + 1) * s],
-            interpolation=cv2.INTER_LINEAR)
-        # cv2.resize extrapolates the border cells by a constant: their pure cells are
-        # interpolated here instead.
-        interp = pure & ~empty
-        interp[1:-1, 1:-1] = False
-        jobs = []
-        # Interior cells: full s x s blocks of a view of the buffer offset by s/2.
-        rows_in = slice(half, half + (th - 1) * s)
-        cols_in = slice(half, half + (tw - 1) * s)
-        jobs.append((self._blocks(buf[rows_in, cols_in], th - 1, s, tw - 1, s),
-                     empty[1:-1, 1:-1], exact[1:-1, 1:-1], None, (half, half), (s, s),
-                     (1, 1)))
-        # Border strips (half cells) and the four corners.
-        if tw > 1:
-            for a, v0 in ((0, 0), (th, th * s - half)):
-                sel = (slice(a, a + 1), slice(1, -1))
-                jobs.append((self._blocks(buf[v0:v0 + half, cols_in], 1, half, tw - 1, s),
-                             empty[sel], exact[sel], interp[sel], (v0, half), (half, s),
-                             (a, 1)))
-        if th > 1:
-            for b, u0 in ((0, 0), (tw, tw * s - half)):
-                sel = (slice(1, -1), slice(b, b + 1))
-                jobs.append((self._blocks(buf[rows_in, u0:u0 + half], th - 1, s, 1, half),
-                             empty[sel], exact[sel], interp[sel], (half, u0), (s, half),
-                             (1, b)))
-        for a, v0 in ((0, 0), (th, th * s - half)):
-            for b, u0 in ((0, 0), (tw, tw * s - half)):
-                sel = (slice(a, a + 1), slice(b, b + 1))
-                jobs.append((self._blocks(buf[v0:v0 + half, u0:u0 + half], 1, half, 1, half),
-                             empty[sel], exact[sel], interp[sel], (v0, u0), (half, half),
-                             (a, b)))
-        fills = [self._fill_values(job[2], job[3], job[4], job[5], job[6], q, node_map)
-                 for job in jobs]
+            cv2.resize, coarse, ((tw + 2) * s, (k1 - k0 + 3) * s),
+            dst=buf[k0 * s:(k1 + 3) * s], interpolation=cv2.INTER_LINEAR)
+        # cell (a, b) covers panorama pixels [a s - s/2, a s + s/2) x [b s - s/2, ...)
+        blocks = self._blocks(buf[half:half + (th + 1) * s, half:half + (tw + 1) * s],
+                              th + 1, s, tw + 1, s)
+        values, count = None, 0
+        if exact.any():
+            by, bx = np.nonzero(exact)
+            rows, cols = by * s - half, bx * s - half
+            if self.sub_step:
+                values, count = self._refine(rows, cols, s, s, q)
+            else:
+                values = self._exact_pixels(rows, cols, s, s, q)
+                count = int(values.size // 2)
         t_values = time.perf_counter()
         resized.result()
         t_resize = time.perf_counter()
-        count = 0
-        for (blocks, empty_mask, exact_mask, interp_mask, _, _, _), (ivals, evals, n) in zip(
-                jobs, fills):
-            if empty_mask.any():
-                blocks[empty_mask] = OUTSIDE
-            if ivals is not None:
-                blocks[interp_mask] = ivals
-            if evals is not None:
-                blocks[exact_mask] = evals
-            count += n
+        if empty.any():
+            blocks[empty] = OUTSIDE
+        if values is not None:
+            blocks[exact] = values
         end = time.perf_counter()
         self.last_stats = {
             'total_s': end - start, 'grid_s': t_grid - start,
             'cells_s': t_values - t_grid, 'resize_wait_s': t_resize - t_values,
             'write_s': end - t_resize, 'exact_pixels': count, 'cells': int(pure.size),
             'pure_cells': int(pure.sum()), 'empty_cells': empty_cells, 'step': s}
-        return buf[:self.geometry.height, :self.geometry.width]
+        return panorama
 
     def _classify_seen_rows(self, q):
         """
@@ -904,42 +896,6 @@ class LookupBuilder:
         if not np.shares_memory(blocks, region):  # pragma: no cover - numpy guarantees it
             raise RuntimeError('block view is not a view')
         return blocks.transpose(0, 2, 1, 3, 4)
-
-    def _fill_values(self, exact, interp, origin, block, cell0, q, node_map):
-        """
-        Compute the values of one family of equal blocks (nothing is written).
-
-        ``origin`` is the pixel (row, col) of block (0, 0), ``block`` its (height, width),
-        ``cell0`` its cell index. Returns ``(interpolated, exact, pixels evaluated
-        exactly)``: the bilinear interpolation of the cell's corner nodes for the
-        ``interp`` blocks and the exact (refined) values for the ``exact`` blocks, or
-        None where there are none.
-        """
-        (v0, u0), (bh, bw) = origin, block
-        ivals = evals = None
-        count = 0
-        if interp is not None and interp.any():
-            by, bx = np.nonzero(interp)
-            a, b = by + cell0[0], bx + cell0[1]
-            s, half = self.step, self.step // 2
-            rows = (v0 + by * s)[:, None] + np.arange(bh)[None, :]
-            cols = (u0 + bx * s)[:, None] + np.arange(bw)[None, :]
-            fy = ((rows - ((a - 1) * s + half - 0.5)[:, None]) / s)[:, :, None, None]
-            fx = ((cols - ((b - 1) * s + half - 0.5)[:, None]) / s)[:, None, :, None]
-            corner = [node_map[a + i, b + j][:, None, None, :] for i in (0, 1) for j in (0, 1)]
-            upper = corner[0] + fx * (corner[1] - corner[0])
-            lower = corner[2] + fx * (corner[3] - corner[2])
-            ivals = (upper + fy * (lower - upper)).astype(np.float32)
-        if exact.any():
-            by, bx = np.nonzero(exact)
-            if self.sub_step:
-                evals, count = self._refine(v0 + by * self.step, u0 + bx * self.step, bh, bw,
-                                            q)
-            else:
-                evals = self._exact_pixels(v0 + by * self.step, u0 + bx * self.step, bh, bw,
-                                           q)
-                count = int(evals.size // 2)
-        return ivals, evals, count
 
     def _exact_pixels(self, row0, col0, bh, bw, q):
         """Exact map values ``(n, bh, bw, 2)`` of blocks starting at pixels row0, col0."""
@@ -997,19 +953,14 @@ class LookupBuilder:
                            np.abs(0.25 * (c00[1] + c01[1] + c10[1] + c11[1]) - s_my))
         pure = same & all_near & (error <= CENTRE_CHECK_FRACTION * self.tolerance_px)
         empty = same & ~pure & ((common & 15) != 0) & (min_dist >= 1.0)
-        # bilinear interpolation of every sub-block (overwritten where not pure)
-        f = ((np.arange(sub) + 0.5) / sub).astype(np.float32)
-        fy = f[None, None, :, None, None, None]
-        fx = f[None, None, None, None, :, None]
-        k = np.stack([k_mx, k_my], axis=-1)  # (n, ny+1, nx+1, 2)
-        k00 = k[:, :-1, :-1][:, :, None, :, None, :]
-        k01 = k[:, :-1, 1:][:, :, None, :, None, :]
-        k10 = k[:, 1:, :-1][:, :, None, :, None, :]
-        k11 = k[:, 1:, 1:][:, :, None, :, None, :]
-        upper = k00 + fx * (k01 - k00)
-        lower = k10 + fx * (k11 - k10)
-        values = upper + fy * (lower - upper)  # float32 (n, ny, sub, nx, sub, 2)
+        # bilinear interpolation of the pure sub-blocks: the fixed weights (sub * sub, 4)
+        # times the four corners (4, 2) of each
+        values = np.empty((n, ny, sub, nx, sub, 2), np.float32)
         view = values.transpose(0, 1, 3, 2, 4, 5)  # (n, ny, nx, sub, sub, 2)
+        if pure.any():
+            k = np.stack([k_mx, k_my], axis=-1)  # (n, ny+1, nx+1, 2)
+            corners4 = np.stack([k[:, rs, cs][pure] for rs, cs in corner_sl], axis=1)
+            view[pure] = np.matmul(self._sub_weights, corners4).reshape(-1, sub, sub, 2)
         if empty.any():
             view[empty] = OUTSIDE
         rest = ~pure & ~empty
@@ -1041,9 +992,9 @@ class LookupBuilder:
         return self._rays_at(rows, cols, self._cos_el, self._sin_el, self._sin_az,
                              self._cos_az)
 
-    @staticmethod
-    def _rays_at(rows, cols, cos_el, sin_el, sin_az, cos_az):
-        """Rays ``(3, n, len_rows, len_cols)`` from per-block row and column indices."""
+    def _rays_at(self, rows, cols, cos_el, sin_el, sin_az, cos_az):
+        """Rays ``(3, n, len_rows, len_cols)`` from per-block pixel rows and columns."""
+        rows, cols = rows + self._pad, cols + self._pad
         ce = cos_el[rows][:, :, None]
         rays = np.empty((3,) + rows.shape + (cols.shape[1],), np.float32)
         np.multiply(ce, sin_az[cols][:, None, :], out=rays[0])

@@ -257,12 +257,9 @@ class StitcherNode(Node):
         start = time.perf_counter()
         roll, pitch = attitude['attitude'][1]
         self.stitcher.rebuild_threshold_deg = self.params['rebuild_threshold_deg']
-        self.stitcher.set_attitude(roll, pitch)
-        for i in range(len(self.rig)):
-            if i in match and match[i] is not None:
-                self.stitcher.set_image(i, match[i][1])
-            else:
-                self.stitcher.clear_image(i)
+        images = [match[i][1] if match.get(i) is not None else None
+                  for i in range(len(self.rig))]
+        self.stitcher.update(roll, pitch, images)
         panorama = self.stitcher.render()
         header = Image().header
         header.stamp = seconds_to_stamp(newest, Time)

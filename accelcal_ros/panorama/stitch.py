@@ -77,6 +77,7 @@ class Stitcher:
         self._drawn = (0, 0)
         self._frames_on_map = 0
         self._tilt = None
+        self._copy_pool = None
         self.attitude = None
         self.rebuild_count = 0
         self.last_rebuild_s = float('nan')
@@ -134,6 +135,10 @@ class Stitcher:
         Grey images are expanded to three channels for a colour stitcher and colour
         images (BGR order assumed) converted to grey for a grey one.
         """
+        self._copy_in(index, self._checked_image(index, image))
+
+    def _checked_image(self, index, image):
+        """Return ``image`` as an HxW or HxWx3 uint8 array, or raise naming the camera."""
         cam = self.rig.cameras[index]
         image = np.asarray(image)
         if image.dtype != np.uint8:
@@ -146,19 +151,59 @@ class Stitcher:
             raise InputError(f'camera {index} ({cam.name!r}): image is '
                              f'{image.shape[1]}x{image.shape[0]}, the rig file says '
                              f'{cam.width}x{cam.height}')
-        if image.ndim == 3 and image.shape[2] == 1:
-            image = image[:, :, 0]
+        return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
+
+    def _copy_in(self, index, image):
+        """Copy a checked image into the mosaic (None blacks the camera out)."""
         view = self.mosaic_view(index)
-        if self.channels == 3 and image.ndim == 2:
+        if image is None:
+            view[...] = 0
+        elif self.channels == 3 and image.ndim == 2:
             self._cv2.cvtColor(image, self._cv2.COLOR_GRAY2BGR, dst=view)
         elif self.channels == 1 and image.ndim == 3:
             view[...] = self._cv2.cvtColor(image, self._cv2.COLOR_BGR2GRAY)
         else:
             np.copyto(view, image)
 
+    def _copy_all(self, images):
+        for i, image in enumerate(images):
+            self._copy_in(i, image)
+
+    def update(self, roll, pitch, images):
+        """
+        Set the attitude (radians) and one image per rig camera (None: camera blacked out).
+
+        Everything is checked before anything changes (:class:`InputError` otherwise).
+        When the lookup has to be rebuilt, the images are copied into the mosaic by a
+        worker thread meanwhile (the copies hold no lock numpy's work needs), so a
+        changing attitude costs the rebuild alone. Returns True if the lookup was rebuilt.
+        """
+        if len(images) != len(self.rig):
+            raise InputError(f'expected {len(self.rig)} images (one per rig camera, in rig '
+                             f'order), got {len(images)}')
+        roll, pitch = float(roll), float(pitch)
+        if not (math.isfinite(roll) and math.isfinite(pitch)):
+            raise InputError(f'attitude must be finite numbers, got roll={roll}, '
+                             f'pitch={pitch}; keeping the previous lookup')
+        checked = [None if image is None else self._checked_image(i, image)
+                   for i, image in enumerate(images)]
+        if not self.needs_rebuild(roll, pitch):
+            self._copy_all(checked)
+            return False
+        if self._copy_pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._copy_pool = ThreadPoolExecutor(max_workers=1,
+                                                 thread_name_prefix='mosaic_copy')
+        copies = self._copy_pool.submit(self._copy_all, checked)
+        try:
+            return self.set_attitude(roll, pitch)
+        finally:
+            copies.result()
+
     def clear_image(self, index):
         """Black out camera ``index`` (a stalled camera leaves its sector black)."""
-        self.mosaic_view(index)[...] = 0
+        self._copy_in(index, None)
 
     # -- output ---------------------------------------------------------------------------
     def render(self):
@@ -204,12 +249,7 @@ class Stitcher:
 
     def stitch(self, images, roll, pitch):
         """Set the attitude and every image, and return a copy of the panorama."""
-        if len(images) != len(self.rig):
-            raise InputError(f'expected {len(self.rig)} images (one per rig camera, in rig '
-                             f'order), got {len(images)}')
-        self.set_attitude(roll, pitch)
-        for i, image in enumerate(images):
-            self.set_image(i, image)
+        self.update(roll, pitch, images)
         return self.render().copy()
 
     def coverage(self):

@@ -160,3 +160,33 @@ def test_feathered_blending_is_continuous_and_still_faithful(scene):
     blended = soft_stitcher.stitch(views, 0.05, 0.1)
     truth = render.render_panorama_truth(scene, geometry)
     assert render.psnr(blended, truth, soft_stitcher.coverage()) > 30.0
+
+
+def test_update_copies_during_the_rebuild_and_checks_everything_first(scene):
+    """update(): same frame as set_attitude + set_image; bad input changes nothing."""
+    rig = _rig()
+    geometry = PanoramaGeometry(720, 480)
+    views = render.render_camera_views(scene, rig, 0.02, 0.15)
+    one_by_one = Stitcher(rig, geometry)
+    one_by_one.set_attitude(0.02, 0.15)
+    for i, view in enumerate(views):
+        one_by_one.set_image(i, view)
+    expected = one_by_one.render().copy()
+    stitcher = Stitcher(rig, geometry)
+    assert stitcher.update(0.02, 0.15, views) is True  # rebuilt, copies in a worker
+    assert np.array_equal(stitcher.render(), expected)
+    assert stitcher.update(0.02, 0.15, views) is False  # same attitude: copies inline
+    builds = stitcher.rebuild_count
+    wrong = list(views)
+    wrong[3] = views[3][:100]
+    with pytest.raises(InputError, match=r"camera 3 \('cam3'\)"):
+        stitcher.update(0.3, 0.15, wrong)
+    with pytest.raises(InputError, match='finite'):
+        stitcher.update(float('nan'), 0.15, views)
+    assert stitcher.rebuild_count == builds and stitcher.attitude == (0.02, 0.15)
+    assert np.array_equal(stitcher.mosaic, one_by_one.mosaic)
+    # None blacks a camera out (a stalled camera), also while rebuilding
+    stalled = list(views)
+    stalled[1] = None
+    stitcher.update(0.03, 0.15, stalled)
+    assert not stitcher.mosaic_view(1).any() and stitcher.mosaic_view(0).any()
