@@ -25,9 +25,9 @@ import time
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list
 from accelcal_ros.panorama.params import STITCHER_PARAMS
+from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import load_rig
-from accelcal_ros.panorama.stitch import Stitcher
 from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -65,9 +65,10 @@ class StitcherNode(Node):
         geometry = PanoramaGeometry(v['width'], v['height'], v['fov_h_deg'], v['fov_v_deg'],
                                     v['projection'])
         self.encoding = v['output_encoding']
-        self.stitcher = Stitcher(
+        self.stitcher = PipelinedStitcher(
             self.rig, geometry, rotation_matrix_from_list(v['imu_to_camera'], 'imu_to_camera'),
-            grid_step=v['grid_step'], rebuild_threshold_deg=v['rebuild_threshold_deg'],
+            stages=2 if v['pipeline'] else 1, grid_step=v['grid_step'],
+            rebuild_threshold_deg=v['rebuild_threshold_deg'],
             blend_width_deg=v['blend_width_deg'],
             channels=1 if self.encoding == 'mono8' else 3)
         n = len(self.rig)
@@ -122,6 +123,7 @@ class StitcherNode(Node):
         self._stop = True
         self._wake.set()
         self._worker.join(timeout=2.0)
+        self.stitcher.close()
 
     # -- inputs ---------------------------------------------------------------------------
     def _on_image(self, index, msg):
@@ -259,19 +261,28 @@ class StitcherNode(Node):
         self.stitcher.rebuild_threshold_deg = self.params['rebuild_threshold_deg']
         images = [match[i][1] if match.get(i) is not None else None
                   for i in range(len(self.rig))]
-        self.stitcher.update(roll, pitch, images)
-        panorama = self.stitcher.render()
-        header = Image().header
-        header.stamp = seconds_to_stamp(newest, Time)
-        header.frame_id = self.params['frame_id']
-        msg = array_to_image_msg(panorama, self.encoding, Image, header)
-        self.publisher.publish(msg)
-        done = time.perf_counter()
+        # the remap and the publishing run in the render thread (the next frame set's
+        # lookup is rebuilt meanwhile); bad input raises here, before anything is queued
+        self.stitcher.submit(roll, pitch, images,
+                             lambda panorama: self._publish(panorama, newest, start))
         self._last_published = newest
+
+    def _publish(self, panorama, stamp, start):
+        """Publish one panorama (render thread); errors are logged, not raised."""
+        try:
+            header = Image().header
+            header.stamp = seconds_to_stamp(stamp, Time)
+            header.frame_id = self.params['frame_id']
+            msg = array_to_image_msg(panorama, self.encoding, Image, header)
+            self.publisher.publish(msg)
+        except Exception as exc:  # keep rendering; say what happened
+            self._warn_once(('publish', type(exc).__name__),
+                            f'publishing the panorama failed: {type(exc).__name__}: {exc}')
+            return
+        now = time.monotonic()
         self._published += 1
-        self._process_s = done - start
-        now_ros = self.get_clock().now().nanoseconds * 1e-9
-        self._latency_s = now_ros - newest
+        self._process_s = time.perf_counter() - start
+        self._latency_s = self.get_clock().now().nanoseconds * 1e-9 - stamp
         self._publish_times = [t for t in self._publish_times if t > now - 5.0] + [now]
         self._status = 'publishing'
 

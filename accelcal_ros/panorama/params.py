@@ -65,5 +65,9 @@ STITCHER_PARAMS = [
               maximum=90.0, unit='deg', read_only=True),
     ParamSpec('threads', 2, 'OpenCV worker threads (0: OpenCV default)', minimum=0,
               maximum=64, read_only=True),
+    ParamSpec('pipeline', True, 'remap each frame in a render thread while the lookup of '
+              'the next frame set is rebuilt (two mosaics and lookups: about twice the '
+              'memory, about 80 MB more at 3600x2400); false: one frame after the other',
+              read_only=True),
 ]
 """Every parameter of the ``stitcher`` node with its default (see config/stitcher.yaml)."""

@@ -1,0 +1,93 @@
+"""
+Stitchers in turn: frame k+1's lookup is rebuilt while frame k is remapped.
+
+A lookup rebuild is numpy work on one core; the remap keeps every OpenCV thread busy. One
+after the other, a core idles during each rebuild -- with the attitude changing every
+frame, a third of the time on a 2-core machine. :class:`PipelinedStitcher` keeps
+``stages`` :class:`~.stitch.Stitcher` objects (each with its own mosaic, lookup and output
+buffer) and hands every frame's remap to one worker thread, so that the next frame's
+image copies and rebuild run meanwhile. One frame's latency stays what it was; the
+throughput rises (``benchmarks/bench_panorama.py`` prints both). Frames are rendered and
+delivered in the order they were submitted. ``stages=1`` is the plain sequence (half the
+memory: at 3600x2400 each stage holds about 80-100 MB).
+"""
+from concurrent.futures import ThreadPoolExecutor, wait
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.panorama.stitch import Stitcher
+
+
+class PipelinedStitcher:
+    """
+    Submit frame sets; each panorama is handed to a callback from the render thread.
+
+    Typical use::
+
+        stitchers = PipelinedStitcher(rig, PanoramaGeometry(3600, 2400, 180, 120))
+        future = stitchers.submit(roll, pitch, images, publish)  # publish(panorama)
+        ...
+        stitchers.close()                                         # waits for the last
+
+    ``options`` are :class:`~.stitch.Stitcher`'s keyword arguments.
+    """
+
+    def __init__(self, rig, geometry, *args, stages=2, **options):
+        if stages not in (1, 2):
+            raise InputError(f'stages must be 1 or 2, got {stages!r}')
+        self.stitchers = [Stitcher(rig, geometry, *args, **options) for _ in range(stages)]
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='panorama_remap')
+        self._pending = [None] * stages
+        self._submitted = 0
+
+    @property
+    def rebuild_threshold_deg(self):
+        """Tilt change (degrees) that triggers a lookup rebuild (every stage alike)."""
+        return self.stitchers[0].rebuild_threshold_deg
+
+    @rebuild_threshold_deg.setter
+    def rebuild_threshold_deg(self, value):
+        for stitcher in self.stitchers:
+            stitcher.rebuild_threshold_deg = float(value)
+
+    @property
+    def rebuild_count(self):
+        """Lookup rebuilds so far, all stages together."""
+        return sum(s.rebuild_count for s in self.stitchers)
+
+    @property
+    def last_rebuild_s(self):
+        """Duration of the latest rebuild (seconds; NaN before the first)."""
+        latest = max(self.stitchers, key=lambda s: s.rebuild_count)
+        return latest.last_rebuild_s
+
+    def submit(self, roll, pitch, images, consume):
+        """
+        Stitch one frame set (radians; images in rig order, None: camera blacked out).
+
+        ``consume(panorama)`` is called from the render thread with the stage's output
+        buffer, valid during the call only (copy or serialise it there). Returns a
+        ``concurrent.futures.Future`` of consume's result. Bad input raises
+        :class:`InputError` here, before anything is queued or changed. Waits while the
+        stage's previous frame is still being rendered.
+        """
+        index = self._submitted % len(self.stitchers)
+        stitcher = self.stitchers[index]
+        if self._pending[index] is not None:
+            wait([self._pending[index]])
+        stitcher.update(roll, pitch, images)
+        future = self._worker.submit(self._render, stitcher, consume)
+        self._pending[index] = future
+        self._submitted += 1
+        return future
+
+    @staticmethod
+    def _render(stitcher, consume):
+        return consume(stitcher.render())
+
+    def drain(self):
+        """Wait until every submitted frame has been rendered and consumed."""
+        wait([f for f in self._pending if f is not None])
+
+    def close(self):
+        """Finish the submitted frames and stop the render thread."""
+        self._worker.shutdown(wait=True)
