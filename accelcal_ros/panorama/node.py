@@ -15,8 +15,10 @@ camera frame used, and ``/diagnostics`` (one status per camera, one for the pano
 Frames of the cameras are matched by stamp within ``sync_tolerance_s``
 (:class:`~accelcal_ros.rosutil.stamp_sync.StampMatcher`); a camera silent for more than
 ``stale_timeout_s`` is stalled: the others go on and its sector stays black. Before the
-first attitude arrives nothing is published (said once). Stitching runs in a worker
-thread, so subscriptions never wait for it. Core: :class:`~.stitch.Stitcher`.
+first attitude arrives nothing is published (said once). Matching, image copies and
+lookup rebuilds run in a worker thread, so subscriptions never wait for them; with
+``pipeline`` (default) each frame is remapped and published from a render thread while
+the next frame set's lookup is rebuilt. Core: :class:`~.pipeline.PipelinedStitcher`.
 """
 import math
 import threading
@@ -43,7 +45,7 @@ from sensor_msgs.msg import Image
 
 
 class StitcherNode(Node):
-    """Thin node around :class:`~accelcal_ros.panorama.stitch.Stitcher`."""
+    """Thin node around :class:`~accelcal_ros.panorama.pipeline.PipelinedStitcher`."""
 
     def __init__(self):
         super().__init__('stitcher')
