@@ -235,7 +235,7 @@ class LookupBuilder:
     A map is a float32 array ``(height, width, 2)`` of mosaic coordinates ``(x, y)``;
     pixels no camera sees hold :data:`OUTSIDE`. ``grid_step`` (even, >= 4) is the cell
     size of the fast builder; it is reduced to the largest even divisor of the panorama
-    width not above it when there is one (so the map is one contiguous array).
+    width not above it when there is one (so that cells tile the width exactly).
     ``tolerance_px`` bounds the interpolation error of a pure cell (in camera pixels,
     checked at its centre).
     """
