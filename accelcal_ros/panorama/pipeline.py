@@ -38,6 +38,8 @@ class PipelinedStitcher:
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='panorama_remap')
         self._pending = [None] * stages
         self._submitted = 0
+        self.last_rebuild_s = float('nan')
+        """Duration of the latest rebuild (seconds; NaN before the first)."""
 
     @property
     def rebuild_threshold_deg(self):
@@ -54,12 +56,6 @@ class PipelinedStitcher:
         """Lookup rebuilds so far, all stages together."""
         return sum(s.rebuild_count for s in self.stitchers)
 
-    @property
-    def last_rebuild_s(self):
-        """Duration of the latest rebuild (seconds; NaN before the first)."""
-        latest = max(self.stitchers, key=lambda s: s.rebuild_count)
-        return latest.last_rebuild_s
-
     def submit(self, roll, pitch, images, consume):
         """
         Stitch one frame set (radians; images in rig order, None: camera blacked out).
@@ -74,7 +70,8 @@ class PipelinedStitcher:
         stitcher = self.stitchers[index]
         if self._pending[index] is not None:
             wait([self._pending[index]])
-        stitcher.update(roll, pitch, images)
+        if stitcher.update(roll, pitch, images):
+            self.last_rebuild_s = stitcher.last_rebuild_s
         future = self._worker.submit(self._render, stitcher, consume)
         self._pending[index] = future
         self._submitted += 1

@@ -32,6 +32,15 @@ def rotation_angle_deg(a, b):
     return math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
 
 
+def _finite_attitude(roll, pitch):
+    """Return ``(roll, pitch)`` as floats, or raise :class:`InputError` unless finite."""
+    roll, pitch = float(roll), float(pitch)
+    if not (math.isfinite(roll) and math.isfinite(pitch)):
+        raise InputError(f'attitude must be finite numbers, got roll={roll}, '
+                         f'pitch={pitch}; keeping the previous lookup')
+    return roll, pitch
+
+
 class Stitcher:
     """
     Levelled panorama from the images of a calibrated rig and the reference attitude.
@@ -98,10 +107,7 @@ class Stitcher:
         Rebuilds the lookup when needed; returns True if it did. NaN or infinite angles
         raise :class:`InputError` and leave the current map in place.
         """
-        roll, pitch = float(roll), float(pitch)
-        if not (math.isfinite(roll) and math.isfinite(pitch)):
-            raise InputError(f'attitude must be finite numbers, got roll={roll}, '
-                             f'pitch={pitch}; keeping the previous lookup')
+        roll, pitch = _finite_attitude(roll, pitch)
         if not force and not self.needs_rebuild(roll, pitch):
             return False
         start = time.perf_counter()
@@ -181,10 +187,7 @@ class Stitcher:
         if len(images) != len(self.rig):
             raise InputError(f'expected {len(self.rig)} images (one per rig camera, in rig '
                              f'order), got {len(images)}')
-        roll, pitch = float(roll), float(pitch)
-        if not (math.isfinite(roll) and math.isfinite(pitch)):
-            raise InputError(f'attitude must be finite numbers, got roll={roll}, '
-                             f'pitch={pitch}; keeping the previous lookup')
+        roll, pitch = _finite_attitude(roll, pitch)
         checked = [None if image is None else self._checked_image(i, image)
                    for i, image in enumerate(images)]
         if not self.needs_rebuild(roll, pitch):

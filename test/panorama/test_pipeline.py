@@ -45,6 +45,8 @@ def test_pipeline_delivers_the_plain_stitchers_frames_in_order(stages):
     assert all(name.startswith('panorama_remap') for name in threads)
     assert pipeline.rebuild_count == len(frames)
     assert pipeline.last_rebuild_s > 0
+    # the latest rebuild is the last frame's stage's (stage counts tie after an even run)
+    assert pipeline.last_rebuild_s == pipeline.stitchers[(len(frames) - 1) % stages].last_rebuild_s
 
 
 def test_pipeline_bad_input_queues_nothing_and_threshold_reaches_every_stage():
