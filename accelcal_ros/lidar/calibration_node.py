@@ -3,7 +3,9 @@ Node ``lidar_calibration``: LiDAR-IMU boresight calibration on a live rig (paper
 
 Subscribes ``points`` (sensor_msgs/PointCloud2, LiDAR frame) and ``imu/data_raw``
 (sensor_msgs/Imu, specific force m/s^2, REP-145; gyro used when its covariance[0] != -1),
-both with sensor-data QoS (``points_reliable`` switches the scans to reliable). Captures
+best effort (IMU depth ``imu_queue_depth``; scans depth ``queue_depth``, reliable with
+``points_reliable``), deep enough that a process starved of CPU for seconds catches up on
+its backlog without losing a position. Captures
 a position automatically each time the rig rests (:mod:`accelcal_ros.lidar.capture`), or
 on ``lidar_calibration/capture`` (std_srvs/Trigger). ``lidar_calibration/finish``
 (Trigger) solves the boresight (:func:`accelcal_ros.lidar.boresight.calibrate_boresight`)
@@ -21,7 +23,7 @@ from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, PointCloud2
 from std_srvs.srv import Trigger
 
@@ -48,6 +50,12 @@ SPECS = [
     ParamSpec('points_reliable', False, 'subscribe to points with reliable QoS (drivers that '
               'publish reliable, e.g. velodyne; large scans are then retransmitted instead of '
               'lost); default best effort (sensor data)', read_only=True),
+    ParamSpec('queue_depth', 100, 'scans queued by the points subscription: the backlog a '
+              'stalled process catches up on (keep it well above clouds_per_capture)',
+              minimum=1, maximum=1000, read_only=True),
+    ParamSpec('imu_queue_depth', 2000, 'IMU samples queued by the imu/data_raw subscription '
+              '(2000 = 40 s at 50 Hz, 5 s at 400 Hz)', minimum=10, maximum=100000,
+              read_only=True),
     ParamSpec('min_positions', 3, 'positions needed before finish solves', minimum=2,
               maximum=1000),
     ParamSpec('distance_threshold_m', 0.05, 'MSAC inlier distance', minimum=0.001,
@@ -81,10 +89,14 @@ class LidarCalibrationNode(Node):
         self._was_still = False
         self._n_logged = 0
         self._warned = set()
-        imu_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT,
-                             history=HistoryPolicy.KEEP_LAST)  # absorbs bursts of samples
+        imu_qos = QoSProfile(depth=self.params['imu_queue_depth'],
+                             reliability=ReliabilityPolicy.BEST_EFFORT,
+                             history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
-        points_qos = 5 if self.params['points_reliable'] else qos_profile_sensor_data
+        reliability = (ReliabilityPolicy.RELIABLE if self.params['points_reliable']
+                       else ReliabilityPolicy.BEST_EFFORT)
+        points_qos = QoSProfile(depth=self.params['queue_depth'], reliability=reliability,
+                                history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(PointCloud2, 'points', self._on_cloud, points_qos)
         self.create_service(Trigger, 'lidar_calibration/capture', self._on_capture)
         self.create_service(Trigger, 'lidar_calibration/finish', self._on_finish)

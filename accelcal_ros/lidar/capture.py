@@ -2,22 +2,36 @@
 Online capture of static positions for the boresight calibration (core of ``lidar_calibration``).
 
 IMU samples (time s, specific force m/s^2, optional gyro rad/s) and LiDAR scans (time s,
-points (N, 3) m in the LiDAR frame) are fed as they arrive. The IMU is *still* when,
-over the last ``min_static_s``, every gyro axis (or, without a gyro, every accelerometer
-axis) varies less than its threshold (standard deviation) and the mean rate is below
-``gyro_rate_threshold_rad_s``. While still, scans are
-collected; once ``clouds_per_capture`` scans arrived the position is captured (auto mode)
-with the mean specific force over the still period so far. One capture per still period;
-motion re-arms it. A few missing samples keep the state; a gap longer than half of
-``min_static_s`` ends the still period (the rig may have moved unseen). A scan stamped
-inside the still period that just ended but arriving after the IMU moved on (the topics
-are not ordered) still counts for that period. If no motion was
-seen and gravity agrees within 1 deg with the last capture afterwards, it is the same
-position and is not captured again.
-:meth:`StaticCapture.capture_now` captures on request.
+points (N, 3) m in the LiDAR frame) are fed as they arrive, the two streams in any
+interleaving.
+
+Still periods. The IMU is *still* when, over the last ``min_static_s``, every gyro axis
+(or, without a gyro, every accelerometer axis) varies less than its threshold (standard
+deviation) and the mean rate is below ``gyro_rate_threshold_rad_s``; the still period
+then starts at the beginning of that window. Motion ends it. A gap in the IMU stream
+longer than half of ``min_static_s`` ends it too, because the rig may have moved unseen;
+but if no motion is seen afterwards and the next still period's mean gravity agrees with
+it within ``same_position_deg``, the rig did not change its attitude (a yaw turn or a
+shift changes neither the gravity in the IMU frame nor the floor normal in the LiDAR
+frame, the pair a position contributes), so that period is continued: scans from
+before and after the gap add up, scans stamped inside the gap are not used, and a period
+already captured is not captured twice.
+
+Scans. A scan is judged by its own stamp against the IMU stream: it joins the still
+period whose time span holds its stamp (the current one once the IMU has reached the
+stamp, or one of the last ``recent_periods`` that ended within ``buffer_s``, since scans
+may arrive seconds late after a stall of the receiving process). A scan no period holds
+yet waits (at most ``max_pending_scans``, oldest dropped) until the IMU stream is
+``min_static_s`` past its stamp: a still period is only recognised ``min_static_s``
+after it began (longer after a gap), and then reaches back to its beginning. After that
+the scan was taken while moving and is dropped. Once a
+period holds ``clouds_per_capture`` scans it is captured (auto mode) with the mean
+specific force over the period (:class:`~accelcal_ros.lidar.boresight.StaticPosition`);
+one capture per period. :meth:`StaticCapture.capture_now` captures the current period on
+request.
 """
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import takewhile
 
 from accelcal_ros.lidar.boresight import StaticPosition
@@ -36,6 +50,28 @@ class CaptureSettings:
     clouds_per_capture: int = 1
     buffer_s: float = 60.0
     auto: bool = True
+    same_position_deg: float = 1.0
+    max_pending_scans: int = 100
+    recent_periods: int = 10
+
+
+@dataclass
+class _StillPeriod:
+    """One still period: ``[start_s, end_s]`` (open: ``end_s`` inf) minus its IMU gaps."""
+
+    start_s: float
+    last_still_s: float
+    end_s: float = np.inf
+    clouds: list = field(default_factory=list)
+    captured: bool = False
+    ended_by_motion: bool = False
+    gap_until_s: float = None   # first IMU sample after the gap that ended it
+    gaps: list = field(default_factory=list)   # (t0, t1) without IMU samples
+    gravity_m_s2: np.ndarray = None   # mean specific force, set when it ends
+
+    def covers(self, t):
+        """Return True when a scan stamped ``t`` s was taken in this period."""
+        return self.start_s <= t <= self.end_s and not any(a < t < b for a, b in self.gaps)
 
 
 class StaticCapture:
@@ -45,46 +81,57 @@ class StaticCapture:
         self.settings = settings or CaptureSettings()
         self.model = model
         self._imu = deque()
-        self._still_since = None
-        self._captured_this_still = False
-        self._clouds = []
-        self._last_still_t = None
-        self._closed = None  # [start, end, clouds, ended_by_motion] of the last still period
+        self._current = None
+        self._ended = deque()   # recent ended periods, newest last
+        self._motion_since_end = False
+        self._seen_since_s = -np.inf   # first IMU sample after the last gap
         self._pending = []
         self.positions = []
         self.out_of_order = 0
-        self._motion_since_capture = True
+
+    @property
+    def still(self):
+        """Return True while the IMU is still."""
+        return self._current is not None
 
     def add_imu(self, t, accel, gyro=None):
-        """Add one IMU sample; returns True when still. Out-of-order samples are counted."""
+        """
+        Add one IMU sample; returns True when still. Out-of-order samples are counted.
+
+        Scans waiting for the IMU stream are resolved here, so a position may be captured
+        by this call (new entries in :attr:`positions`).
+        """
+        t = float(t)
         if self._imu and t <= self._imu[-1][0]:
             self.out_of_order += 1
             return self.still
         if self._imu and t - self._imu[-1][0] > 0.5 * self.settings.min_static_s:
-            # a long gap: the rig may have moved unseen, never average across it
-            self._end_still(ended_by_motion=False)
+            self._end(ended_by_motion=False, gap_until_s=t)  # the rig may have moved unseen
+            self._seen_since_s = t
         accel = np.asarray(accel, dtype=float)
         if self.model is not None:
             accel = self.model.correct(accel / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
-        self._imu.append((float(t), accel, None if gyro is None else np.asarray(gyro, float)))
-        while self._imu and self._imu[0][0] < t - self.settings.buffer_s:
+        self._imu.append((t, accel, None if gyro is None else np.asarray(gyro, float)))
+        while self._imu[0][0] < t - self.settings.buffer_s:
             self._imu.popleft()
+        while self._ended and self._ended[0].end_s < self._imu[0][0]:
+            self._ended.popleft()   # its samples are gone
         still = self._window_still(t)
-        if still is None:  # too few samples (a gap in the stream): keep the previous state
-            still = self._still_since is not None
-        elif still and self._still_since is None:
-            self._still_since = t - self.settings.min_static_s
-        elif not still and self._still_since is not None:
-            self._motion_since_capture = True
-            self._end_still(ended_by_motion=True)
-        if still:
-            self._last_still_t = t
+        if still is False:
+            self._motion_since_end = True
+            self._end(ended_by_motion=True)
+        elif still and self._current is None:
+            self._start(t)
+        if self._current is not None:
+            self._current.last_still_s = t
         self._drain()
-        return still
+        return self.still
 
     def _window_still(self, t):
+        """Judge the last ``min_static_s`` since the last gap: True, False, or None (too few)."""
         s = self.settings
-        window = list(takewhile(lambda x: x[0] >= t - s.min_static_s, reversed(self._imu)))
+        since = max(t - s.min_static_s, self._seen_since_s)
+        window = list(takewhile(lambda x: x[0] >= since, reversed(self._imu)))
         window.reverse()
         if len(window) < 5 or window[-1][0] - window[0][0] < 0.8 * s.min_static_s:
             return None
@@ -95,114 +142,96 @@ class StaticCapture:
         acc = np.array([x[1] for x in window])
         return bool(np.all(acc.std(axis=0) < s.accel_std_threshold_m_s2))
 
-    @property
-    def still(self):
-        """Return True while the IMU is still."""
-        return self._still_since is not None
+    def _mean_accel(self, start, end):
+        samples = [x[1] for x in self._imu if start <= x[0] <= end]
+        return np.mean(samples, axis=0) if samples else None
+
+    def _start(self, t):
+        """Open a still period, or continue the last one when only a gap ended it."""
+        start = max(t - self.settings.min_static_s, self._seen_since_s)
+        last = self._ended[-1] if self._ended else None
+        if (last is not None and not last.ended_by_motion and not self._motion_since_end
+                and last.gravity_m_s2 is not None
+                and self._same_direction(last.gravity_m_s2, self._mean_accel(start, t))):
+            self._ended.pop()
+            last.gaps.append((last.end_s, last.gap_until_s))
+            last.end_s = np.inf
+            self._current = last
+        else:
+            self._current = _StillPeriod(start, t)
+
+    def _same_direction(self, a, b):
+        if b is None:
+            return False
+        cos = a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-12)
+        return bool(cos > np.cos(np.radians(self.settings.same_position_deg)))
+
+    def _end(self, ended_by_motion, gap_until_s=None):
+        """Close the current still period, keeping it for scans that arrive late."""
+        period, self._current = self._current, None
+        if period is None:
+            return
+        period.end_s = period.last_still_s
+        period.ended_by_motion = ended_by_motion
+        period.gap_until_s = gap_until_s
+        period.gravity_m_s2 = self._mean_accel(period.start_s, period.end_s)
+        self._ended.append(period)
+        self._motion_since_end = False
+        while len(self._ended) > self.settings.recent_periods:
+            self._ended.popleft()
 
     def add_cloud(self, t, points):
-        """
-        Add a scan; returns the captured :class:`StaticPosition` when auto-captured.
-
-        A scan newer than the newest IMU sample waits until the IMU stream reaches its
-        stamp (scans and IMU arrive on separate topics, in any interleaving), so it is
-        always judged against the stillness at its own time.
-        """
+        """Add a scan; returns the :class:`StaticPosition` it completed (auto mode), else None."""
         self._pending.append((float(t), np.asarray(points, dtype=float).reshape(-1, 3)))
-        # keep enough scans for one capture (packetised drivers send many small ones)
-        del self._pending[:-max(10, 2 * self.settings.clouds_per_capture)]
+        limit = max(self.settings.max_pending_scans, 2 * self.settings.clouds_per_capture)
+        del self._pending[:-limit]
         return self._drain()
 
+    def _period_at(self, t):
+        for period in ([self._current] if self._current else []) + list(reversed(self._ended)):
+            if period.covers(t):
+                return period
+        return None
+
     def _drain(self):
+        """Hand every scan the IMU stream has reached to its still period."""
         if not self._imu:
             return None
         newest = self._imu[-1][0]
         captured = None
         keep = []
         for t, pts in self._pending:
-            if t > newest:
-                keep.append((t, pts))
+            period = self._period_at(t) if t <= newest else None
+            if period is None:
+                if t + self.settings.min_static_s > newest:
+                    keep.append((t, pts))   # a still period may yet be found to cover it
                 continue
-            closed = self._closed
-            if closed is not None and closed[0] <= t <= closed[1]:
-                # stamped inside the still period that just ended: it arrived late (scans
-                # and IMU come on separate topics), so it still belongs to that period
-                closed[2].append(pts)
-                if self.settings.auto and len(closed[2]) >= self.settings.clouds_per_capture:
-                    captured = self._capture_closed()
+            if period.captured:
                 continue
-            if self._still_since is None or t < self._still_since or self._captured_this_still:
-                continue
-            if self._same_as_last_capture():
-                self._captured_this_still = True
-                continue
-            self._clouds.append(pts)
-            if self.settings.auto and len(self._clouds) >= self.settings.clouds_per_capture:
-                captured = self._capture()
+            period.clouds.append(pts)
+            if self.settings.auto and len(period.clouds) >= self.settings.clouds_per_capture:
+                captured = self._capture(period)
         self._pending = keep
         return captured
 
-    def _same_as_last_capture(self):
-        """Return True when no motion was seen since the last capture and gravity agrees."""
-        if self._motion_since_capture or not self.positions:
-            return False
-        accel = np.array([x[1] for x in self._imu if x[0] >= self._still_since])
-        if not len(accel):
-            return False
-        now = accel.mean(axis=0)
-        last = self.positions[-1].gravity_m_s2
-        cos = now @ last / (np.linalg.norm(now) * np.linalg.norm(last))
-        return bool(cos > np.cos(np.radians(1.0)))
-
     def capture_now(self):
         """Capture the current position; returns ``(position or None, reason)``."""
-        if self._still_since is None:
+        if self._current is None:
             return None, 'the IMU is not still (wait until the rig rests)'
-        if self._captured_this_still:
+        if self._current.captured:
             return None, 'this still period is already captured (move to the next position)'
-        if not self._clouds:
+        if not self._current.clouds:
             return None, 'no LiDAR scan received since the rig came to rest'
-        return self._capture(), 'captured'
+        return self._capture(self._current), 'captured'
 
-    def _end_still(self, ended_by_motion):
-        """Close the current still period, keeping it for scans that arrive late."""
-        self._closed = None
-        if self._still_since is not None and not self._captured_this_still \
-                and self._last_still_t is not None:
-            self._closed = [self._still_since, self._last_still_t, self._clouds,
-                            ended_by_motion]
-        self._still_since = None
-        self._captured_this_still = False
-        self._clouds = []
-
-    def _capture_closed(self):
-        start, end, clouds, ended_by_motion = self._closed
-        self._closed = None
-        position = self._make_position(start, end, clouds)
-        self._motion_since_capture = ended_by_motion
-        return position
-
-    def _capture(self):
-        position = self._make_position(self._still_since, np.inf, self._clouds)
-        self._captured_this_still = True
-        self._motion_since_capture = False
-        self._clouds = []
-        return position
-
-    def _make_position(self, start, end, clouds):
-        samples = [x[1] for x in self._imu if start <= x[0] <= end]
-        accel = np.array(samples)
+    def _capture(self, period):
+        accel = np.array([x[1] for x in self._imu if period.start_s <= x[0] <= period.end_s])
         gravity = accel.mean(axis=0)
         std = float(np.linalg.norm(accel.std(axis=0)) / np.sqrt(len(accel) * 1.5)
                     / max(np.linalg.norm(gravity), 1e-9))
         name = f'pos{len(self.positions) + 1:02d}'
-        position = StaticPosition(name, np.vstack(clouds), gravity, std)
+        position = StaticPosition(name, np.vstack(period.clouds), gravity, std)
         self.positions.append(position)
+        period.captured = True
+        period.clouds = []
         return position
-
-    def reset(self):
-        """Forget every captured position."""
-        self.positions = []
-        self._captured_this_still = False
-        self._clouds = []
-        self._closed = None
