@@ -65,8 +65,7 @@ class _StillPeriod:
     clouds: list = field(default_factory=list)
     captured: bool = False
     ended_by_motion: bool = False
-    gap_until_s: float = None   # first IMU sample after the gap that ended it
-    gaps: list = field(default_factory=list)   # (t0, t1) without IMU samples
+    gaps: list = field(default_factory=list)   # (t0, t1) not seen still (IMU gaps)
     gravity_m_s2: np.ndarray = None   # mean specific force, set when it ends
 
     def covers(self, t):
@@ -106,7 +105,7 @@ class StaticCapture:
             self.out_of_order += 1
             return self.still
         if self._imu and t - self._imu[-1][0] > 0.5 * self.settings.min_static_s:
-            self._end(ended_by_motion=False, gap_until_s=t)  # the rig may have moved unseen
+            self._end(ended_by_motion=False)  # the rig may have moved unseen
             self._seen_since_s = t
         accel = np.asarray(accel, dtype=float)
         if self.model is not None:
@@ -118,8 +117,8 @@ class StaticCapture:
             self._ended.popleft()   # its samples are gone
         still = self._window_still(t)
         if still is False:
-            self._motion_since_end = True
             self._end(ended_by_motion=True)
+            self._motion_since_end = True
         elif still and self._current is None:
             self._start(t)
         if self._current is not None:
@@ -146,6 +145,10 @@ class StaticCapture:
         samples = [x[1] for x in self._imu if start <= x[0] <= end]
         return np.mean(samples, axis=0) if samples else None
 
+    def _accel_in(self, period):
+        """Specific force samples (n, 3) the period holds (none from its gaps)."""
+        return np.array([x[1] for x in self._imu if period.covers(x[0])]).reshape(-1, 3)
+
     def _start(self, t):
         """Open a still period, or continue the last one when only a gap ended it."""
         start = max(t - self.settings.min_static_s, self._seen_since_s)
@@ -154,7 +157,7 @@ class StaticCapture:
                 and last.gravity_m_s2 is not None
                 and self._same_direction(last.gravity_m_s2, self._mean_accel(start, t))):
             self._ended.pop()
-            last.gaps.append((last.end_s, last.gap_until_s))
+            last.gaps.append((last.end_s, start))   # unseen: no scan from then counts
             last.end_s = np.inf
             self._current = last
         else:
@@ -166,15 +169,15 @@ class StaticCapture:
         cos = a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-12)
         return bool(cos > np.cos(np.radians(self.settings.same_position_deg)))
 
-    def _end(self, ended_by_motion, gap_until_s=None):
+    def _end(self, ended_by_motion):
         """Close the current still period, keeping it for scans that arrive late."""
         period, self._current = self._current, None
         if period is None:
             return
         period.end_s = period.last_still_s
         period.ended_by_motion = ended_by_motion
-        period.gap_until_s = gap_until_s
-        period.gravity_m_s2 = self._mean_accel(period.start_s, period.end_s)
+        accel = self._accel_in(period)
+        period.gravity_m_s2 = accel.mean(axis=0) if len(accel) else None
         self._ended.append(period)
         self._motion_since_end = False
         while len(self._ended) > self.settings.recent_periods:
@@ -225,7 +228,7 @@ class StaticCapture:
         return self._capture(self._current), 'captured'
 
     def _capture(self, period):
-        accel = np.array([x[1] for x in self._imu if period.start_s <= x[0] <= period.end_s])
+        accel = self._accel_in(period)
         gravity = accel.mean(axis=0)
         std = float(np.linalg.norm(accel.std(axis=0)) / np.sqrt(len(accel) * 1.5)
                     / max(np.linalg.norm(gravity), 1e-9))

@@ -157,3 +157,19 @@ def test_stalled_receiver_still_captures_every_position(seed):
         assert np.degrees(np.arccos(np.clip(
             position.gravity_m_s2 @ g / np.linalg.norm(position.gravity_m_s2) / 9.81,
             -1, 1))) < 0.2
+
+
+def test_scans_in_a_second_gap_before_the_rest_resumes_are_not_used():
+    """Two gaps with a few samples between: everything unseen until the rest resumes."""
+    capture = StaticCapture(CaptureSettings(min_static_s=0.5, clouds_per_capture=2))
+    g = np.array([0.0, 0.0, 9.81])
+    feed_imu(capture, 0.0, 1.5, g, moving=False)
+    capture.add_cloud(1.2, np.ones((10, 3)))
+    feed_imu(capture, 1.9, 2.0, g, moving=False, seed=1)   # gap, 5 samples, gap again
+    feed_imu(capture, 2.4, 3.2, g, moving=False, seed=2)
+    assert capture.still
+    capture.add_cloud(2.2, np.full((10, 3), 7.0))   # stamped inside the second gap
+    capture.add_cloud(1.95, np.full((10, 3), 7.0))  # between the gaps: never judged still
+    assert not capture.positions
+    position = capture.add_cloud(3.0, np.ones((10, 3)))
+    assert position is not None and np.all(position.points == 1.0)
