@@ -212,13 +212,18 @@ class StaticCapture:
             if period.captured:
                 continue
             period.clouds.append(pts)
+            del period.clouds[:-self.settings.clouds_per_capture]   # manual mode: the latest
             if self.settings.auto and len(period.clouds) >= self.settings.clouds_per_capture:
                 captured = self._capture(period)
         self._pending = keep
         return captured
 
     def capture_now(self):
-        """Capture the current position; returns ``(position or None, reason)``."""
+        """
+        Capture the current position; returns ``(position or None, reason)``.
+
+        The position merges the latest ``clouds_per_capture`` scans of the current period.
+        """
         if self._current is None:
             return None, 'the IMU is not still (wait until the rig rests)'
         if self._current.captured:

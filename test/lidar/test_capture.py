@@ -173,3 +173,15 @@ def test_scans_in_a_second_gap_before_the_rest_resumes_are_not_used():
     assert not capture.positions
     position = capture.add_cloud(3.0, np.ones((10, 3)))
     assert position is not None and np.all(position.points == 1.0)
+
+
+def test_manual_capture_merges_the_latest_scans_only():
+    """Without auto capture a long rest keeps only the last clouds_per_capture scans."""
+    capture = StaticCapture(CaptureSettings(min_static_s=0.5, clouds_per_capture=2, auto=False))
+    feed_imu(capture, 0.0, 1.0, [0.0, 0.0, 9.81], moving=False)
+    for k, t in enumerate((0.6, 0.7, 0.8, 0.9)):
+        capture.add_cloud(t, np.full((3, 3), float(k)))
+    assert not capture.positions
+    position, reason = capture.capture_now()
+    assert reason == 'captured' and sorted(set(position.points[:, 0])) == [2.0, 3.0]
+    assert capture.capture_now()[0] is None
