@@ -66,7 +66,7 @@ class _StillPeriod:
     captured: bool = False
     ended_by_motion: bool = False
     gaps: list = field(default_factory=list)   # (t0, t1) not seen still (IMU gaps)
-    gravity_m_s2: np.ndarray = None   # mean specific force, set when it ends
+    gravity_m_s2: np.ndarray = None   # mean specific force, set when a gap ends it
 
     def covers(self, t):
         """Return True when a scan stamped ``t`` s was taken in this period."""
@@ -176,8 +176,9 @@ class StaticCapture:
             return
         period.end_s = period.last_still_s
         period.ended_by_motion = ended_by_motion
-        accel = self._accel_in(period)
-        period.gravity_m_s2 = accel.mean(axis=0) if len(accel) else None
+        if not ended_by_motion:   # only a gap-ended period may be continued (_start)
+            accel = self._accel_in(period)
+            period.gravity_m_s2 = accel.mean(axis=0) if len(accel) else None
         self._ended.append(period)
         self._motion_since_end = False
         while len(self._ended) > self.settings.recent_periods:
