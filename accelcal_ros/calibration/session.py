@@ -3,7 +3,7 @@ A calibration session (pure core): feed samples, capture still positions, fit.
 
 :class:`Calibrator` is what the ``calibration`` node and ``accelcal calibrate`` share.
 Samples are raw readings in g (sensor frame) with times in s. A
-:class:`~accelcal_ros.calibration.static_detector.StaticDetector` finds still dwells; with
+:class:`~accelcal_ros.sensor.stillness.StillnessDetector` finds still dwells; with
 ``auto_capture`` every dwell that lasts ``min_still_s`` and whose direction is more than
 ``min_separation_deg`` from every captured position is captured (provisionally at
 ``min_still_s``, then refined with the rest of the dwell until the sensor moves).
@@ -20,8 +20,8 @@ from typing import List, Optional
 
 from accelcal_ros.calibration.coverage import coverage_fraction, suggest_directions
 from accelcal_ros.calibration.ellipsoid_fit import check_model, fit_ellipsoid, parameter_count
-from accelcal_ros.calibration.static_detector import StaticDetector
 from accelcal_ros.errors import AccelcalError, CalibrationError
+from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 import numpy as np
 
 
@@ -105,9 +105,9 @@ class Calibrator:
                 f'a calibration session is already running ({len(self.captures)} positions); '
                 'call calibration/finish to fit it or calibration/cancel to discard it first')
         cfg = self.config
-        self.detector = StaticDetector(window_s=cfg.window_s, threshold_g=cfg.still_threshold_g,
-                                       min_still_s=cfg.min_still_s,
-                                       saturation_g=cfg.saturation_g)
+        self.detector = StillnessDetector(StillnessThresholds(
+            window_s=cfg.window_s, accel_std_g=cfg.still_threshold_g,
+            min_still_s=cfg.min_still_s, saturation_g=cfg.saturation_g))
         self.captures = []
         self._close_segments = set()
         self._progress_cache = None
@@ -141,18 +141,20 @@ class Calibrator:
         """
         if not self.active:
             return []
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        accel_g = np.asarray(accel_g, dtype=float).reshape(-1, 3)
+        t = np.atleast_1d(np.asarray(t, dtype=float)).tolist()
+        accel_g = np.asarray(accel_g, dtype=float).reshape(-1, 3).tolist()
         detector = self.detector
+        add = detector.add
+        auto = self.config.auto_capture
+        min_still_s = self.config.min_still_s
         events = []
         before = detector.rejected
         for ti, ai in zip(t, accel_g):
-            detector.add(ti, ai)
+            add(ti, ai)
             if detector.ended:
                 events += self._handle_ended()
             seg = detector.segment
-            if seg is not None and self.config.auto_capture \
-                    and seg.duration_s >= self.config.min_still_s:
+            if seg is not None and auto and seg.duration_s >= min_still_s:
                 events += self._auto_capture(seg)
         if detector.rejected > before and before == 0:
             events.append('rejected samples that are NaN or saturated (beyond '
@@ -179,7 +181,7 @@ class Calibrator:
             if cap is not None and not cap.final:
                 final = seg.final
                 if final is not None and final.samples >= cap.samples:
-                    cap.mean_g, cap.std_of_mean_g = final.mean_g, final.std_of_mean_g
+                    cap.mean_g, cap.std_of_mean_g = final.accel_mean, final.accel_std_of_mean
                     cap.samples, cap.duration_s = final.samples, final.duration_s
                     self._progress_cache = None
                 cap.final = True
@@ -208,11 +210,11 @@ class Calibrator:
             if not cap.final and cap.blocks_seen != len(seg.blocks):
                 cap.blocks_seen = len(seg.blocks)
                 current = seg.stats()
-                cap.mean_g, cap.std_of_mean_g = current.mean_g, current.std_of_mean_g
+                cap.mean_g, cap.std_of_mean_g = current.accel_mean, current.accel_std_of_mean
                 cap.samples, cap.duration_s = current.samples, current.duration_s
             return []
         stats = stats or seg.stats()
-        direction = stats.mean_g / np.linalg.norm(stats.mean_g)
+        direction = stats.accel_mean / np.linalg.norm(stats.accel_mean)
         k, angle = self._closest(direction)
         if k is not None and angle <= self.config.min_separation_deg:
             self._close_segments.add(seg.segment_id)
@@ -224,8 +226,8 @@ class Calibrator:
         return [f'captured position {cap.index} automatically ({cap.samples} samples)']
 
     def _add_capture(self, stats, segment_id, automatic):
-        cap = Capture(index=len(self.captures), mean_g=stats.mean_g,
-                      std_of_mean_g=stats.std_of_mean_g, samples=stats.samples,
+        cap = Capture(index=len(self.captures), mean_g=stats.accel_mean,
+                      std_of_mean_g=stats.accel_std_of_mean, samples=stats.samples,
                       duration_s=stats.duration_s, automatic=automatic, segment_id=segment_id)
         self.captures.append(cap)
         self._progress_cache = None
@@ -242,7 +244,7 @@ class Calibrator:
         self._require_active('capture')
         seg = self.detector.segment
         if seg is None:
-            std = self.detector.motion_std_g
+            std = self.detector.motion_std
             level = '' if not np.isfinite(std) else (
                 f' (motion {std * 1e3:.1f} mg > threshold '
                 f'{self.config.still_threshold_g * 1e3:.1f} mg)')
