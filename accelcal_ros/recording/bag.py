@@ -1,0 +1,265 @@
+"""
+One streaming reader for recorded bags: rosbag2 (directory, ``.mcap`` or ``.db3``) and ROS 1.
+
+:class:`BagReader` opens a bag with ``rosbags`` (no ROS install), lists its topics with
+types and message counts, picks the topic an offline command needs
+(:meth:`BagReader.select_topic`) and yields :class:`BagMessage` objects in receive-time
+order across the selected topics, one message at a time: a bag is never loaded whole, so
+memory stays bounded on multi-GB bags. Each message keeps both times: ``receive_ns``
+(when the recorder got it, the bag's clock) and ``header_ns`` (the sensor's stamp, 0 when
+the type has no header).
+
+Bad input raises :class:`~accelcal_ros.errors.FileFormatError` (missing path, a directory
+without ``metadata.yaml``, unreadable or corrupt data: the message says how many messages
+were read and how far into the recording; a bag that ends before its index says is not
+taken as complete) or :class:`~accelcal_ros.errors.InputError` (a topic that is missing,
+of the wrong type or empty: the message lists the topics there are).
+"""
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple
+
+from accelcal_ros.errors import AccelcalError, FileFormatError, InputError
+from accelcal_ros.recording.progress import Progress
+
+BAG_SUFFIXES = ('.bag', '.mcap', '.db3')
+_STORAGE_SUFFIXES = ('.mcap', '.db3')
+_DAMAGE_WORDS = ('index', 'magic', 'malformed', 'header could not', 'truncat', 'unexpected end',
+                 'not a database')
+
+
+def normalize_type(msgtype: str) -> str:
+    """Return ``pkg/Type`` for ``pkg/msg/Type`` (ROS 2) or ``pkg/Type`` (ROS 1)."""
+    return msgtype.replace('/msg/', '/')
+
+
+def normalize_topic(topic: str) -> str:
+    """Return the topic with exactly one leading slash (bags store absolute names)."""
+    return '/' + topic.strip().lstrip('/')
+
+
+def is_bag(path) -> bool:
+    """Return True when ``path`` looks like a bag (by suffix or rosbag2 directory content)."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / 'metadata.yaml').exists() or any(
+            c.suffix in _STORAGE_SUFFIXES for c in p.iterdir())
+    return p.suffix.lower() in BAG_SUFFIXES
+
+
+@dataclass
+class TopicSummary:
+    """One topic of a bag: normalised type (``pkg/Type``) and message count."""
+
+    name: str
+    msgtype: str
+    count: int
+
+
+@dataclass
+class BagMessage:
+    """A deserialised message with its topic, type and both times (ns)."""
+
+    topic: str
+    msgtype: str
+    receive_ns: int
+    msg: object
+    raw: bytes = b''
+
+    @property
+    def header_ns(self) -> int:
+        """Return the header stamp in ns (0 when the message has no header)."""
+        header = getattr(self.msg, 'header', None)
+        if header is None:
+            return 0
+        return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _storage_path(path: Path) -> Tuple[Path, List[str]]:
+    """Return the path to open and notes; a directory without metadata.yaml is handled."""
+    if not path.exists():
+        raise FileFormatError(path, 'no such bag (file or rosbag2 directory)')
+    if not path.is_dir():
+        if path.suffix.lower() not in BAG_SUFFIXES:
+            raise FileFormatError(path, f'not a bag: expected a rosbag2 directory or a file '
+                                  f'ending in {", ".join(BAG_SUFFIXES)}')
+        return path, []
+    if (path / 'metadata.yaml').exists():
+        return path, []
+    files = sorted(c for c in path.iterdir() if c.suffix in _STORAGE_SUFFIXES)
+    if not files:
+        raise FileFormatError(path, 'bag directory without metadata.yaml and without '
+                              '.mcap/.db3 files: not a rosbag2 recording')
+    if len(files) > 1:
+        raise FileFormatError(path, 'bag directory without metadata.yaml holds several '
+                              f'storage files ({", ".join(f.name for f in files)}): restore '
+                              'metadata.yaml (ros2 bag reindex) or pass one file')
+    return files[0], [f'{path}: no metadata.yaml; reading {files[0].name} alone']
+
+
+def _reason(exc: BaseException) -> str:
+    text = ' '.join(str(a) for a in exc.args) or type(exc).__name__
+    return text.strip().splitlines()[0] if text.strip() else type(exc).__name__
+
+
+class BagReader:
+    """Read a bag lazily; use as a context manager (``with BagReader(path) as bag:``)."""
+
+    def __init__(self, path, stamp: str = 'header'):
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import get_typestore, Stores
+
+        if stamp not in ('header', 'receive'):
+            raise InputError(f"stamp must be 'header' or 'receive', not {stamp!r}")
+        self.path = Path(path)
+        self.stamp = stamp
+        storage, self.notes = _storage_path(self.path)
+        ros1 = storage.suffix.lower() == '.bag'
+        store = Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY
+        self.format = 'ros1' if ros1 else ('mcap' if self._is_mcap(storage) else 'sqlite3')
+        try:
+            self._reader = AnyReader([storage], default_typestore=get_typestore(store))
+            self._reader.open()
+        except Exception as exc:  # rosbags raises many types for bad files
+            hint = ''
+            if any(w in _reason(exc).lower() for w in _DAMAGE_WORDS):
+                hint = (' (damaged or cut short, e.g. the recorder was killed: `rosbag '
+                        'reindex` / `ros2 bag reindex` / `mcap recover` repair it)')
+            raise FileFormatError(self.path, f'cannot open bag: {_reason(exc)}{hint}') from None
+        self._open = True
+
+    @staticmethod
+    def _is_mcap(storage: Path) -> bool:
+        if storage.is_dir():
+            return any(storage.glob('*.mcap'))
+        return storage.suffix.lower() == '.mcap'
+
+    def __enter__(self):
+        """Return the open reader."""
+        return self
+
+    def __exit__(self, *exc):
+        """Close the bag."""
+        self.close()
+        return False
+
+    def close(self) -> None:
+        """Close the bag (idempotent)."""
+        if self._open:
+            self._open = False
+            try:
+                self._reader.close()
+            except Exception:  # closing a damaged bag must not hide the first error
+                pass
+
+    @property
+    def is_ros1(self) -> bool:
+        """Return True for a ROS 1 bag (messages in ROS 1 serialisation)."""
+        return not self._reader.is2
+
+    def topics(self) -> Dict[str, TopicSummary]:
+        """Return ``{topic: TopicSummary}`` of every topic in the bag."""
+        found: Dict[str, TopicSummary] = {}
+        for conn in self._reader.connections:
+            item = found.get(conn.topic)
+            if item is None:
+                found[conn.topic] = TopicSummary(conn.topic, normalize_type(conn.msgtype),
+                                                 int(conn.msgcount))
+            else:
+                item.count += int(conn.msgcount)
+        return found
+
+    def connection_of(self, topic: str):
+        """Return the rosbags Connection of a topic (type, definition, digest, QoS)."""
+        for conn in self._reader.connections:
+            if conn.topic == topic:
+                return conn
+        raise InputError(f'{self.path} has no topic {topic}; it has: {self.listing()}')
+
+    def listing(self, only_types: Sequence[str] = ()) -> str:
+        """Return ``topic (type, N messages)`` of every topic, or of those of some types."""
+        items = [t for t in self.topics().values() if not only_types or t.msgtype in only_types]
+        if not items:
+            return 'no topics'
+        return ', '.join(f'{t.name} ({t.msgtype}, {t.count} messages)'
+                         for t in sorted(items, key=lambda t: t.name))
+
+    def select_topic(self, requested: Optional[str], types: Sequence[str],
+                     option: str = '--topic') -> str:
+        """
+        Return the bag topic to read for a command that needs one of ``types``.
+
+        ``requested`` (with or without the leading slash) must exist, have one of the
+        types and hold messages; when None, the only topic of those types is used, else
+        the error lists the candidates with types and message counts.
+        """
+        topics = self.topics()
+        wanted = ' or '.join(types)
+        if requested is None:
+            candidates = [t for t in topics.values() if t.msgtype in types]
+            if len(candidates) == 1:
+                topic = candidates[0]
+            elif not candidates:
+                raise InputError(f'{self.path} has no {wanted} topic; it has: '
+                                 f'{self.listing()}')
+            else:
+                raise InputError(f'{self.path} has several {wanted} topics: '
+                                 f'{self.listing(types)}; choose one with {option}')
+        else:
+            name = normalize_topic(requested)
+            topic = topics.get(name) or topics.get(name.lstrip('/'))
+            if topic is None:
+                raise InputError(f'{self.path} has no topic {requested}; it has: '
+                                 f'{self.listing()}')
+            if topic.msgtype not in types:
+                others = self.listing(types) if any(
+                    t.msgtype in types for t in topics.values()) else 'none'
+                raise InputError(f'topic {topic.name} of {self.path} is {topic.msgtype}, not '
+                                 f'{wanted} (topics of that type: {others})')
+        if topic.count == 0:
+            raise InputError(f'topic {topic.name} of {self.path} is empty (0 messages)')
+        return topic.name
+
+    def messages(self, topics: Sequence[str], label: Optional[str] = None,
+                 decode: Optional[Sequence[str]] = None) -> Iterator[BagMessage]:
+        """
+        Yield the messages of ``topics`` in receive-time order, deserialised one by one.
+
+        ``decode`` limits deserialisation to some topics (the others' ``msg`` is None;
+        ``raw`` always holds the serialised bytes).
+
+        A read or decode failure, or fewer messages than the bag's index lists, raises
+        FileFormatError saying how many messages were read and up to which time.
+        """
+        conns = [c for c in self._reader.connections if c.topic in set(topics)]
+        total = sum(int(c.msgcount) for c in conns)
+        progress = Progress(total, label or f'reading {self.path.name}')
+        read, first_ns, last_ns = 0, None, None
+        try:
+            for conn, receive_ns, raw in self._reader.messages(connections=conns):
+                msg = (self._reader.deserialize(raw, conn.msgtype)
+                       if decode is None or conn.topic in decode else None)
+                read += 1
+                first_ns = receive_ns if first_ns is None else first_ns
+                last_ns = receive_ns
+                progress.update()
+                yield BagMessage(conn.topic, normalize_type(conn.msgtype), receive_ns, msg, raw)
+        except AccelcalError:
+            raise
+        except Exception as exc:  # rosbags/sqlite/lz4/zstd/struct errors on damaged data
+            raise FileFormatError(self.path, self._damage(read, total, first_ns, last_ns,
+                                                          _reason(exc))) from None
+        finally:
+            progress.close()
+        if total and read < total:
+            raise FileFormatError(self.path, self._damage(
+                read, total, first_ns, last_ns, 'the bag ends before the messages its index '
+                'lists'))
+
+    @staticmethod
+    def _damage(read, total, first_ns, last_ns, reason) -> str:
+        span = '' if first_ns is None else f', {(last_ns - first_ns) / 1e9:.3f} s into the data'
+        of = f' of {total}' if total else ''
+        return (f'corrupt or truncated: read {read}{of} messages{span} before: {reason}; '
+                'nothing is computed from a partial bag (repair it with `ros2 bag reindex` / '
+                '`rosbag reindex`, or cut it before the damage)')

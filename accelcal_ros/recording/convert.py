@@ -1,0 +1,85 @@
+"""
+Deserialised bag messages (rosbags classes, ROS 1 or ROS 2) -> numpy.
+
+The field names are the ROS message definitions', so these functions work on rosbags'
+classes as on rclpy's. Units stay ROS's (REP-103: m, m/s^2, rad/s, rad).
+
+- sensor_msgs/Imu: :func:`imu_values` (specific force m/s^2, rate rad/s, whether the rate
+  is provided: REP-145 ``angular_velocity_covariance[0] == -1`` means it is not);
+- sensor_msgs/PointCloud2: :func:`cloud_array` (structured array, every field kept;
+  :func:`accelcal_ros.rosutil.pointcloud2.pointcloud2_to_array`, pure numpy);
+- nav_msgs/Odometry: :func:`odometry_pose` (position m and quaternion x y z w of the child
+  frame in the parent frame);
+- sensor_msgs/Image and CompressedImage: :func:`image_array` (OpenCV order, BGR);
+- geometry_msgs/Vector3Stamped from the attitude node: :func:`attitude_roll_pitch`
+  (x = roll, y = pitch, rad);
+- sensor_msgs/CameraInfo: :func:`camera_info` (K, D, P, size, distortion model).
+"""
+from typing import Dict, Tuple
+
+from accelcal_ros.errors import InputError
+import numpy as np
+
+IMU = 'sensor_msgs/Imu'
+POINTCLOUD2 = 'sensor_msgs/PointCloud2'
+ODOMETRY = 'nav_msgs/Odometry'
+IMAGE = 'sensor_msgs/Image'
+COMPRESSED_IMAGE = 'sensor_msgs/CompressedImage'
+VECTOR3_STAMPED = 'geometry_msgs/Vector3Stamped'
+CAMERA_INFO = 'sensor_msgs/CameraInfo'
+
+
+def imu_values(msg) -> Tuple[np.ndarray, np.ndarray, bool]:
+    """Return ``(specific force (3,) m/s^2, angular rate (3,) rad/s, rate provided)``."""
+    a, w = msg.linear_acceleration, msg.angular_velocity
+    accel = np.array([a.x, a.y, a.z], dtype=float)
+    gyro = np.array([w.x, w.y, w.z], dtype=float)
+    provided = float(msg.angular_velocity_covariance[0]) != -1.0
+    return accel, gyro, provided
+
+
+def cloud_array(msg) -> np.ndarray:
+    """Return the points of a PointCloud2 as a packed structured array (fields kept)."""
+    from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
+
+    return pointcloud2_to_array(msg)
+
+
+def odometry_pose(msg) -> Tuple[np.ndarray, np.ndarray]:
+    """Return ``(position (3,) m, quaternion (4,) x y z w)`` of an Odometry's pose."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    return (np.array([p.x, p.y, p.z], dtype=float),
+            np.array([q.x, q.y, q.z, q.w], dtype=float))
+
+
+def attitude_roll_pitch(msg) -> Tuple[float, float]:
+    """Return ``(roll, pitch)`` rad of the attitude node's Vector3Stamped (x, y)."""
+    return float(msg.vector.x), float(msg.vector.y)
+
+
+def image_array(msg, msgtype: str = IMAGE) -> np.ndarray:
+    """Return an Image or CompressedImage as an OpenCV BGR (or mono) uint8 array."""
+    if msgtype == COMPRESSED_IMAGE:
+        import cv2
+
+        data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+        img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        if img is None:
+            raise InputError(f'CompressedImage ({msg.format!r}) cannot be decoded')
+        return img
+    from accelcal_ros.rosutil.images import image_msg_to_array
+
+    enc = str(msg.encoding).lower()
+    return image_msg_to_array(msg, want=None if enc.startswith('mono') else 'bgr8',
+                              encodings=('rgb8', 'bgr8', 'mono8', 'mono16'))
+
+
+def camera_info(msg) -> Dict[str, object]:
+    """Return ``{'K' (3, 3), 'D' (n,), 'P' (3, 4), 'width', 'height', 'distortion_model'}``."""
+    k = np.asarray(getattr(msg, 'k', getattr(msg, 'K', None)), dtype=float).reshape(3, 3)
+    d = np.asarray(getattr(msg, 'd', getattr(msg, 'D', ())), dtype=float).reshape(-1)
+    p = np.asarray(getattr(msg, 'p', getattr(msg, 'P', None)), dtype=float).reshape(3, 4)
+    if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0):
+        raise InputError(f'CameraInfo has no valid K (focal lengths {k[0, 0]}, {k[1, 1]})')
+    return {'K': k, 'D': d, 'P': p, 'width': int(msg.width), 'height': int(msg.height),
+            'distortion_model': str(msg.distortion_model)}

@@ -1,0 +1,81 @@
+"""
+A progress bar on stderr when stderr is a terminal; silent otherwise (pipes, logs, CI).
+
+``Progress(total, label)`` counts units (messages, bytes, frames); ``update(n)`` redraws
+at most every ``min_interval_s``; ``close()`` ends the line. ``ACCELCAL_PROGRESS=0`` turns
+it off and ``=1`` forces it on (for tests of the drawing).
+"""
+import os
+import sys
+import time
+from typing import Optional, TextIO
+
+
+def progress_enabled(stream: Optional[TextIO] = None) -> bool:
+    """Return True when a bar should be drawn on ``stream`` (default stderr)."""
+    forced = os.environ.get('ACCELCAL_PROGRESS', '')
+    if forced in ('0', '1'):
+        return forced == '1'
+    stream = sys.stderr if stream is None else stream
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+class Progress:
+    """Count ``total`` units (0: unknown) and draw ``label [####....] 42% n/total`` lines."""
+
+    def __init__(self, total: int, label: str, stream: Optional[TextIO] = None,
+                 min_interval_s: float = 0.2, width: int = 30):
+        self.total = max(int(total), 0)
+        self.label = label
+        self.count = 0
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = progress_enabled(self.stream)
+        self.min_interval_s = min_interval_s
+        self.width = width
+        self._start = time.monotonic()
+        self._last = 0.0
+        self._drawn = False
+
+    def update(self, n: int = 1) -> None:
+        """Add ``n`` units; redraw when enough time passed."""
+        self.count += n
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self._last >= self.min_interval_s:
+            self._last = now
+            self._draw(now)
+
+    def _draw(self, now: float) -> None:
+        elapsed = max(now - self._start, 1e-9)
+        rate = self.count / elapsed
+        if self.total:
+            frac = min(self.count / self.total, 1.0)
+            filled = int(round(frac * self.width))
+            bar = '#' * filled + '.' * (self.width - filled)
+            text = (f'\r{self.label} [{bar}] {frac * 100:3.0f}% {self.count}/{self.total} '
+                    f'({rate:.0f}/s)')
+        else:
+            text = f'\r{self.label} {self.count} ({rate:.0f}/s)'
+        self.stream.write(text)
+        self.stream.flush()
+        self._drawn = True
+
+    def close(self) -> None:
+        """Draw the final state and end the line (nothing when disabled)."""
+        if self.enabled:
+            self._draw(time.monotonic())
+            self.stream.write('\n')
+            self.stream.flush()
+
+    def __enter__(self):
+        """Use as a context manager: ``close()`` on exit."""
+        return self
+
+    def __exit__(self, *exc):
+        """End the line."""
+        self.close()
+        return False

@@ -1,0 +1,186 @@
+"""
+Whole streams from a recording, as the offline commands use them, with stamp checks.
+
+Time of a message (s): its header stamp by default (the sensor's clock, as the nodes use
+it); ``stamp='receive'`` takes the bag's receive time instead, and a message whose header
+stamp is zero always takes its receive time. :func:`check_stamps` warns (with counts) when
+the times go backwards or jump, and when the header stamps are far from the receive times
+(saying which one is used).
+
+:func:`read_imu` loads an IMU topic into arrays (an IMU topic is small: 200 Hz for an hour
+is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
+"""
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.recording import convert
+from accelcal_ros.recording.bag import BagMessage, BagReader
+import numpy as np
+
+HEADER_RECEIVE_WARN_S = 0.5
+"""Median |header - receive| above which the choice of stamp is stated."""
+JUMP_FACTOR = 10.0
+"""A gap longer than this many median periods (and than 0.1 s) is a jump."""
+
+
+def message_time_s(message: BagMessage, stamp: str) -> float:
+    """Return the time of a message in s: header stamp, or receive time (see module doc)."""
+    header = message.header_ns
+    if stamp == 'receive' or header == 0:
+        return message.receive_ns * 1e-9
+    return header * 1e-9
+
+
+def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp: str
+                 ) -> List[str]:
+    """
+    Return warnings about a topic's times (``header_s`` 0 where there is no header).
+
+    Backwards steps and jumps are counted on the times used; the header/receive offset
+    is reported when its median magnitude exceeds :data:`HEADER_RECEIVE_WARN_S`.
+    """
+    header_s = np.asarray(header_s, dtype=float)
+    receive_s = np.asarray(receive_s, dtype=float)
+    warnings = []
+    has_header = header_s != 0
+    used = receive_s if stamp == 'receive' else np.where(has_header, header_s, receive_s)
+    if stamp == 'header' and has_header.any() and not has_header.all():
+        warnings.append(f'{topic}: {int((~has_header).sum())} of {len(used)} messages have a '
+                        'zero header stamp; their receive time is used')
+    if has_header.any():
+        offset = header_s[has_header] - receive_s[has_header]
+        median = float(np.median(offset))
+        if abs(median) > HEADER_RECEIVE_WARN_S:
+            which = ('receive times (--stamp receive)' if stamp == 'receive' else
+                     'header stamps (--stamp receive uses the receive times)')
+            warnings.append(f'{topic}: header stamps differ from the bag receive times by '
+                            f'{median:+.3f} s (median; max |{np.max(np.abs(offset)):.3f}| s); '
+                            f'using {which}')
+    if len(used) > 2:
+        steps = np.diff(used)
+        back = int((steps < 0).sum())
+        if back:
+            warnings.append(f'{topic}: time goes backwards {back} times (largest '
+                            f'{-float(steps.min()):.6f} s); messages are taken in time order')
+        forward = steps[steps > 0]
+        if forward.size:
+            period = float(np.median(forward))
+            limit = max(JUMP_FACTOR * period, 0.1)
+            jumps = steps > limit
+            if jumps.any():
+                k = int(np.argmax(steps))
+                warnings.append(f'{topic}: {int(jumps.sum())} time jumps longer than '
+                                f'{limit:.3f} s (largest {float(steps[k]):.3f} s at '
+                                f'{used[k] - used[0]:.3f} s into the topic)')
+    return warnings
+
+
+@dataclass
+class ImuStream:
+    """An IMU topic: times ``t`` (s), specific force (N, 3) m/s^2, rate (N, 3) rad/s or None."""
+
+    topic: str
+    t: np.ndarray
+    accel: np.ndarray
+    gyro: Optional[np.ndarray]
+    frame_id: str
+    warnings: List[str] = field(default_factory=list)
+
+
+def _sorted_unique(topic, t, *arrays):
+    """Sort by time (stable) and drop repeated stamps; returns (t, arrays, warnings)."""
+    warnings = []
+    order = np.argsort(t, kind='stable')
+    t = t[order]
+    arrays = [None if a is None else a[order] for a in arrays]
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    if not keep.all():
+        warnings.append(f'{topic}: {int((~keep).sum())} messages repeat a time already seen; '
+                        'dropped')
+        t = t[keep]
+        arrays = [None if a is None else a[keep] for a in arrays]
+    return t, arrays, warnings
+
+
+def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> ImuStream:
+    """Read a sensor_msgs/Imu topic (chosen as :meth:`BagReader.select_topic` does)."""
+    name = bag.select_topic(topic, (convert.IMU,), option)
+    header, receive, accel, gyro = [], [], [], []
+    provided = False
+    frame_id = ''
+    for message in bag.messages([name], f'reading {name}'):
+        a, w, p = convert.imu_values(message.msg)
+        accel.append(a)
+        gyro.append(w)
+        provided = provided or p
+        header.append(message.header_ns * 1e-9)
+        receive.append(message.receive_ns * 1e-9)
+        frame_id = frame_id or str(message.msg.header.frame_id)
+    header, receive = np.array(header), np.array(receive)
+    warnings = check_stamps(name, header, receive, bag.stamp)
+    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    accel = np.array(accel).reshape(-1, 3)
+    gyro_arr = np.array(gyro).reshape(-1, 3) if provided else None
+    bad = ~np.all(np.isfinite(accel), axis=1)
+    if bad.all():
+        raise InputError(f'{name}: every linear_acceleration is NaN or infinite')
+    t, (accel, gyro_arr), more = _sorted_unique(name, t, accel, gyro_arr)
+    return ImuStream(name, t, accel, gyro_arr, frame_id, warnings + more)
+
+
+@dataclass
+class PoseStreamArrays:
+    """Odometry poses: ``t`` (s), position (N, 3) m, quaternion (N, 4) x y z w."""
+
+    topic: str
+    t: np.ndarray
+    position: np.ndarray
+    quat: np.ndarray
+    warnings: List[str] = field(default_factory=list)
+
+
+def read_odometry(bag: BagReader, topic: Optional[str], option: str = '--odom'
+                  ) -> PoseStreamArrays:
+    """Read a nav_msgs/Odometry topic into arrays (sorted by time, repeats dropped)."""
+    name = bag.select_topic(topic, (convert.ODOMETRY,), option)
+    header, receive, pos, quat = [], [], [], []
+    for message in bag.messages([name], f'reading {name}'):
+        p, q = convert.odometry_pose(message.msg)
+        pos.append(p)
+        quat.append(q)
+        header.append(message.header_ns * 1e-9)
+        receive.append(message.receive_ns * 1e-9)
+    header, receive = np.array(header), np.array(receive)
+    warnings = check_stamps(name, header, receive, bag.stamp)
+    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    t, (pos, quat), more = _sorted_unique(name, t, np.array(pos).reshape(-1, 3),
+                                          np.array(quat).reshape(-1, 4))
+    return PoseStreamArrays(name, t, pos, quat, warnings + more)
+
+
+@dataclass
+class AttitudeStream:
+    """Attitude topic: ``t`` (s), roll and pitch (rad)."""
+
+    topic: str
+    t: np.ndarray
+    roll: np.ndarray
+    pitch: np.ndarray
+    warnings: List[str] = field(default_factory=list)
+
+
+def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitude'
+                  ) -> AttitudeStream:
+    """Read the attitude node's geometry_msgs/Vector3Stamped topic (x roll, y pitch, rad)."""
+    name = bag.select_topic(topic, (convert.VECTOR3_STAMPED,), option)
+    header, receive, rp = [], [], []
+    for message in bag.messages([name], f'reading {name}'):
+        rp.append(convert.attitude_roll_pitch(message.msg))
+        header.append(message.header_ns * 1e-9)
+        receive.append(message.receive_ns * 1e-9)
+    header, receive = np.array(header), np.array(receive)
+    warnings = check_stamps(name, header, receive, bag.stamp)
+    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    t, (rp,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
+    return AttitudeStream(name, t, rp[:, 0], rp[:, 1], warnings + more)

@@ -1,0 +1,202 @@
+"""
+Write bags without ROS: rosbag2 (mcap or sqlite3 directory) and ROS 1 (``.bag`` file).
+
+:class:`BagWriter` writes into a hidden sibling path and renames it into place on
+:meth:`BagWriter.close` (atomic like :mod:`accelcal_ros.fileio`: a failed command leaves no
+half-written bag); an existing target is refused, as ``ros2 bag record`` does.
+:func:`imu_message` builds the sensor_msgs/Imu the driver publishes (REP-145: orientation
+and rate covariance element 0 = -1, "not provided"); :func:`sensor_data_qos` is rclpy's
+``qos_profile_sensor_data`` (best effort, volatile, keep last 5) as offered-QoS metadata,
+so ``ros2 bag play`` replays with the driver's QoS.
+"""
+import os
+from pathlib import Path
+import shutil
+from typing import Dict, Optional, Sequence
+
+from accelcal_ros.errors import FileFormatError, InputError
+import numpy as np
+
+FORMATS = ('mcap', 'sqlite3', 'ros1')
+
+
+def full_type(msgtype: str) -> str:
+    """Return rosbags' ``pkg/msg/Type`` for ``pkg/Type`` or ``pkg/msg/Type``."""
+    parts = msgtype.split('/')
+    return msgtype if len(parts) == 3 else f'{parts[0]}/msg/{parts[-1]}'
+
+
+def format_for(path, fmt: Optional[str] = None) -> str:
+    """Return the bag format for an output path: ``ros1`` for ``*.bag``, else ``fmt`` or mcap."""
+    if str(path).endswith('.bag'):
+        if fmt not in (None, 'ros1'):
+            raise InputError(f'{path}: a .bag file is a ROS 1 bag, not {fmt}')
+        return 'ros1'
+    if fmt == 'ros1':
+        raise InputError(f'{path}: a ROS 1 bag must end in .bag')
+    return fmt or 'mcap'
+
+
+def sensor_data_qos():
+    """Return rclpy's ``qos_profile_sensor_data`` as a rosbags Qos (offered-QoS metadata)."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    zero = QosTime(0, 0)
+    return Qos(QosHistory.KEEP_LAST, 5, QosReliability.BEST_EFFORT, QosDurability.VOLATILE,
+               zero, zero, QosLiveliness.SYSTEM_DEFAULT, zero, False)
+
+
+class BagWriter:
+    """Write messages to a new bag; use as a context manager (renames into place on success)."""
+
+    def __init__(self, path, fmt: Optional[str] = None):
+        from rosbags.typesys import get_typestore, Stores
+
+        self.path = Path(path)
+        self.format = format_for(self.path, fmt)
+        if fmt is not None and fmt not in FORMATS:
+            raise InputError(f'bag format must be one of {", ".join(FORMATS)}, not {fmt!r}')
+        if self.path.exists():
+            raise InputError(f'{self.path} exists; remove it or choose another output')
+        parent = self.path.parent if str(self.path.parent) else Path('.')
+        if not parent.is_dir():
+            raise InputError(f'{self.path}: directory {parent} does not exist')
+        self._tmp = parent / f'.{self.path.name}.partial-{os.getpid()}'
+        self._remove_tmp()
+        self.typestore = get_typestore(Stores.ROS1_NOETIC if self.format == 'ros1'
+                                       else Stores.ROS2_JAZZY)
+        if self.format == 'ros1':
+            from rosbags.rosbag1 import Writer
+
+            self._writer = Writer(self._tmp)
+        else:
+            from rosbags.rosbag2 import StoragePlugin, Writer
+
+            plugin = StoragePlugin.MCAP if self.format == 'mcap' else StoragePlugin.SQLITE3
+            self._writer = Writer(self._tmp, version=9, storage_plugin=plugin)
+        self._writer.open()
+        self._conns: Dict[str, object] = {}
+        self._seq: Dict[str, int] = {}
+        self.count = 0
+
+    def _remove_tmp(self):
+        if self._tmp.is_dir():
+            shutil.rmtree(self._tmp)
+        elif self._tmp.exists():
+            self._tmp.unlink()
+
+    def add_topic(self, topic: str, msgtype: str, qos: Sequence = (), source=None) -> None:
+        """
+        Declare ``topic`` of ``msgtype`` (``pkg/Type``) with offered QoS profiles.
+
+        Types outside the standard set need ``source``, the rosbags Connection the
+        messages come from (its definition and digest are copied).
+        """
+        if topic in self._conns:
+            return
+        mtype = full_type(msgtype)
+        known = mtype in self.typestore.types
+        kwargs = {}
+        if not known:
+            if source is None:
+                raise InputError(f'message type {msgtype} is unknown; cannot write {topic}')
+            kwargs = {'msgdef': source.msgdef.data}
+            if self.format == 'ros1':
+                kwargs['md5sum'] = source.digest
+            else:
+                kwargs['rihs01'] = source.digest
+        else:
+            kwargs = {'typestore': self.typestore}
+        if self.format == 'ros1':
+            self._conns[topic] = self._writer.add_connection(topic, mtype, **kwargs)
+        else:
+            self._conns[topic] = self._writer.add_connection(
+                topic, mtype, offered_qos_profiles=list(qos), **kwargs)
+
+    def write(self, topic: str, receive_ns: int, msg) -> None:
+        """Serialise ``msg`` (a rosbags message object) onto a declared topic."""
+        conn = self._conns[topic]
+        if self.format == 'ros1':
+            data = self.typestore.serialize_ros1(msg, conn.msgtype)
+        else:
+            data = self.typestore.serialize_cdr(msg, conn.msgtype)
+        self.write_raw(topic, receive_ns, data)
+
+    def write_raw(self, topic: str, receive_ns: int, data) -> None:
+        """Write already serialised bytes (this bag's serialisation) onto a declared topic."""
+        self._writer.write(self._conns[topic], int(receive_ns), data)
+        self.count += 1
+
+    def close(self) -> None:
+        """Finish the bag and move it into place."""
+        try:
+            self._writer.close()
+        except Exception as exc:
+            self._remove_tmp()
+            raise FileFormatError(self.path, f'cannot finish the bag: {exc}') from None
+        if self.format != 'ros1':
+            # rosbag2 names its storage file after the directory: keep that convention
+            for child in list(self._tmp.iterdir()):
+                if child.name.startswith(self._tmp.name):
+                    child.rename(self._tmp / (self.path.name + child.name[len(self._tmp.name):]))
+            meta = self._tmp / 'metadata.yaml'
+            meta.write_text(meta.read_text().replace(self._tmp.name, self.path.name))
+        os.replace(self._tmp, self.path)
+
+    def abort(self) -> None:
+        """Drop the partial bag."""
+        try:
+            self._writer.close()
+        except Exception:
+            pass
+        self._remove_tmp()
+
+    def __enter__(self):
+        """Return the writer."""
+        return self
+
+    def __exit__(self, exc_type, *rest):
+        """Close on success, drop the partial bag on error."""
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+    # -- messages ------------------------------------------------------------------------
+    def header(self, t_ns: int, frame_id: str, topic: str = ''):
+        """Return a std_msgs/Header for this bag's type set (ROS 1 headers count ``seq``)."""
+        types = self.typestore.types
+        stamp = types['builtin_interfaces/msg/Time'](sec=int(t_ns // 1_000_000_000),
+                                                     nanosec=int(t_ns % 1_000_000_000))
+        header_type = types['std_msgs/msg/Header']
+        if self.format == 'ros1':
+            seq = self._seq.get(topic, 0)
+            self._seq[topic] = seq + 1
+            return header_type(seq=seq, stamp=stamp, frame_id=frame_id)
+        return header_type(stamp=stamp, frame_id=frame_id)
+
+    def imu_message(self, t_ns: int, accel_m_s2, frame_id: str, gyro_rad_s=None,
+                    accel_covariance=None, topic: str = ''):
+        """Return a sensor_msgs/Imu as the driver publishes it (see the module docstring)."""
+        types = self.typestore.types
+        vec = types['geometry_msgs/msg/Vector3']
+        quat = types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)
+        a = [float(v) for v in accel_m_s2]
+        orientation_cov = np.zeros(9)
+        orientation_cov[0] = -1.0
+        gyro_cov = np.zeros(9)
+        if gyro_rad_s is None:
+            gyro_cov[0] = -1.0
+            w = [0.0, 0.0, 0.0]
+        else:
+            w = [float(v) for v in gyro_rad_s]
+        accel_cov = (np.zeros(9) if accel_covariance is None
+                     else np.asarray(accel_covariance, dtype=float).reshape(9))
+        return types['sensor_msgs/msg/Imu'](
+            header=self.header(t_ns, frame_id, topic), orientation=quat,
+            orientation_covariance=orientation_cov,
+            angular_velocity=vec(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=gyro_cov,
+            linear_acceleration=vec(x=a[0], y=a[1], z=a[2]),
+            linear_acceleration_covariance=accel_cov)
