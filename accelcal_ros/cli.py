@@ -4,11 +4,19 @@
 Each feature registers its subcommands from its own ``cli.py`` module (listed in
 :data:`FEATURE_CLI_MODULES`) through ``register(subparsers, study_subparsers)``; a module
 keeps heavy imports inside its handlers so ``accelcal --help`` stays quick. A handler
-returns an exit status. :class:`~accelcal_ros.errors.AccelcalError` is shown as one line
-``accelcal: error: ...`` with status 2; nothing is written when a command fails.
+returns an exit status. Numeric options use the argument types of
+:mod:`accelcal_ros.cli_args`, so an out-of-range value is a usage error (status 2).
+
+Errors are one line on stderr, never a traceback: an
+:class:`~accelcal_ros.errors.AccelcalError` (bad file, bad value, failed write) is shown as
+``accelcal: error: ...`` with status 1; anything unexpected as ``accelcal: internal
+error: ...`` with status 1 and a hint (``ACCELCAL_DEBUG=1`` shows the traceback). Every
+command runs inside :func:`accelcal_ros.fileio.guard_inputs`: it cannot write over a file
+it reads.
 """
 import argparse
 import importlib
+import os
 import sys
 
 from accelcal_ros.errors import AccelcalError
@@ -21,13 +29,31 @@ FEATURE_CLI_MODULES = (
     'accelcal_ros.lidar.cli',
 )
 
+#: argument names (``dest``) that are outputs; every other argument naming an existing
+#: file is an input the command must not overwrite
+OUTPUT_DESTS = frozenset({'output', 'plot', 'json', 'out', 'out_dir', 'output_dir'})
+
+EPILOG = ('Errors are printed as one line and exit with status 1 (2 for a bad command '
+          'line). Set ACCELCAL_DEBUG=1 to see the Python traceback of an unexpected error. '
+          'No command writes over one of its input files.')
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (status 2)."""
+
+    def error(self, message):
+        """Print ``accelcal: error: MESSAGE`` and where the usage is; exit with status 2."""
+        self.exit(2, f'accelcal: error: {" ".join(message.split())} ({self.prog} --help '
+                     'shows the usage)\n')
+
 
 def build_parser():
     """Build the full argument parser with every feature's subcommands."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog='accelcal',
         description='ADXL345 field calibration, attitude, panorama stitching, P2P '
-                    'positioning and LiDAR-IMU boresight calibration on recorded data.')
+                    'positioning and LiDAR-IMU boresight calibration on recorded data.',
+        epilog=EPILOG)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     study = sub.add_parser('study', help='accuracy studies against ground truth and the papers')
@@ -44,17 +70,67 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
-    """Entry point of ``accelcal``; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
+def input_paths(args):
+    """Return the arguments of a parsed command that name existing files (not outputs)."""
+    paths = []
+    for dest, value in vars(args).items():
+        if dest in OUTPUT_DESTS:
+            continue
+        for item in (value if isinstance(value, (list, tuple)) else [value]):
+            if isinstance(item, (str, os.PathLike)) and item and os.path.isfile(item):
+                paths.append(os.fspath(item))
+    return paths
+
+
+def output_paths(args):
+    """Return the output arguments of a parsed command that are set."""
+    return [os.fspath(v) for dest, v in vars(args).items()
+            if dest in OUTPUT_DESTS and isinstance(v, (str, os.PathLike)) and v]
+
+
+def run_command(args):
+    """Run a parsed command: inputs guarded, outputs checked before any work."""
+    from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
+
+    inputs = input_paths(args)
+    for output in output_paths(args):
+        refuse_overwriting_inputs(output, inputs)
+    with guard_inputs(inputs):
         return int(args.handler(args) or 0)
+
+
+def main(argv=None):
+    """Entry point of ``accelcal``; returns the exit status (errors: one line on stderr)."""
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a usage error argparse has printed
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    try:
+        return run_command(args)
     except AccelcalError as exc:
-        print(f'accelcal: error: {exc}', file=sys.stderr)
-        return 2
+        print(f'accelcal: error: {_one_line(exc)}', file=sys.stderr)
+        return 1
     except BrokenPipeError:
         return 0
+    except KeyboardInterrupt:
+        print('accelcal: interrupted', file=sys.stderr)
+        return 130
+    except OSError as exc:
+        where = f'{exc.filename}: ' if exc.filename else ''
+        print(f'accelcal: error: {where}{exc.strerror or exc}', file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: B902 - last resort: one line, never a traceback
+        if os.environ.get('ACCELCAL_DEBUG') == '1':
+            raise
+        print(f'accelcal: internal error: {type(exc).__name__}: {_one_line(exc)} (this is a '
+              'bug; run again with ACCELCAL_DEBUG=1 for the traceback and report it)',
+              file=sys.stderr)
+        return 1
+
+
+def _one_line(exc):
+    return ' '.join(str(exc).split()) or type(exc).__name__
 
 
 if __name__ == '__main__':

@@ -36,3 +36,12 @@ class CalibrationError(AccelcalError):
 
 class GeometryError(AccelcalError):
     """A geometric problem is degenerate or has no valid solution."""
+
+
+class FileWriteError(AccelcalError):
+    """An output file cannot be written (read-only place, a directory, no room); names it."""
+
+    def __init__(self, path, message):
+        self.path = str(path)
+        self.reason = message
+        super().__init__(f'{self.path}: {message}')

@@ -1,78 +1,121 @@
 """
-File helpers: atomic writes (with optional backup) and YAML/CSV reading with clear errors.
+File helpers: reading with clear errors, atomic writes that keep the user's files.
 
-A file is never left half-written: data goes to a temporary file in the same directory,
-is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX). With
-``backup=True`` the previous file is kept as ``<name>.bak``.
+Reading: :func:`read_input_bytes` / :func:`read_input_text` are the one place where a file
+is opened for reading; a missing file, a directory, a permission problem or bytes that are
+not UTF-8 become a :class:`~accelcal_ros.errors.FileFormatError` naming the file (and the
+line of a bad byte). :func:`load_yaml_mapping` and :func:`read_numeric_csv` (and the PCD/PLY
+readers) go through them.
+
+Writing: data goes to a temporary file ``.<name>.<pid>-<n>.accelcal-tmp`` in the target's
+directory, is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX).
+An existing file keeps its permission bits; a new one gets ``0666 & ~umask`` like any
+file the user creates. Temporary files that a killed writer left next to the target (their
+pid no longer runs) are removed first. Any failure (read-only place, ``/proc``, a
+directory as target, no room) is a :class:`~accelcal_ros.errors.FileWriteError` naming the
+path. With ``backup=True`` the previous file is kept as ``<name>.bak``.
+
+Inside :func:`guard_inputs` (the ``accelcal`` dispatcher wraps every command in it) every
+file read through this module and every path given to it counts as an input: writing to an
+input (same resolved path or same inode) is refused with an :class:`InputError` unless the
+writer keeps a backup.
 """
+import contextlib
 import csv
 import io
+import itertools
 import math
 import os
-import tempfile
+import re
+import stat
+import threading
 
-from accelcal_ros.errors import FileFormatError
+from accelcal_ros.errors import FileFormatError, FileWriteError, InputError
 import yaml
 
+TEMP_SUFFIX = '.accelcal-tmp'
+_TEMP_PATTERN = re.compile(r'^\.(?P<name>.+)\.(?P<pid>\d+)-\d+' + re.escape(TEMP_SUFFIX) + '$')
+_counter = itertools.count()
+_guard = threading.local()
 
-def write_bytes_atomic(path, data, backup=False):
-    """Write ``data`` (bytes) to ``path`` atomically; keep the old file as ``path.bak``."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix='.' + os.path.basename(path) + '.', dir=directory)
+
+# ---------------------------------------------------------------------------------------
+# reading
+
+
+def _identity(path):
+    """Return ``(device, inode)`` of an existing path, else None."""
     try:
-        with os.fdopen(fd, 'wb') as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if backup and os.path.exists(path):
-            bak = path + '.bak'
-            tmp_bak = bak + '.tmp'
-            with open(path, 'rb') as src, open(tmp_bak, 'wb') as dst:
-                dst.write(src.read())
-            os.replace(tmp_bak, bak)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return info.st_dev, info.st_ino
 
 
-def write_text_atomic(path, text, backup=False):
-    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`write_bytes_atomic`)."""
-    write_bytes_atomic(path, text.encode('utf-8'), backup=backup)
+def _record_input(path):
+    inputs = getattr(_guard, 'inputs', None)
+    if inputs is not None:
+        ident = _identity(path)
+        inputs[os.path.realpath(path)] = (path, ident)
 
 
-def write_with_atomic(path, writer, backup=False, binary=False):
+def read_input_bytes(path, what='file'):
     """
-    Call ``writer(handle)`` on an in-memory buffer, then write it atomically.
+    Return the whole content of ``path`` (bytes); FileFormatError if it cannot be read.
 
-    For writers that need a file object (numpy, csv, OpenCV encoders): nothing reaches
-    ``path`` unless ``writer`` returns without raising.
+    A missing file, a directory, a device that cannot be read or a permission problem is
+    reported with the path and what the file was meant to be (``what``).
     """
-    buffer = io.BytesIO() if binary else io.StringIO()
-    writer(buffer)
-    data = buffer.getvalue()
-    write_bytes_atomic(path, data if binary else data.encode('utf-8'), backup=backup)
+    path = os.fspath(path)
+    if not path:
+        raise FileFormatError('""', f'empty path given for the {what}')
+    if not os.path.exists(path):
+        raise FileFormatError(path, f'{what} not found')
+    if os.path.isdir(path):
+        raise FileFormatError(path, f'is a directory, expected a {what}')
+    try:
+        with open(path, 'rb') as handle:
+            data = handle.read()
+    except MemoryError:
+        raise FileFormatError(path, f'{what} is too large to read') from None
+    except OSError as exc:
+        raise FileFormatError(path, f'cannot read {what}: {exc.strerror or exc}') from None
+    _record_input(path)
+    return data
+
+
+def decode_text(path, data, what='file'):
+    """Decode ``data`` as UTF-8 (BOM allowed); FileFormatError with the line of a bad byte."""
+    try:
+        return data.decode('utf-8-sig')
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b'\n') + 1
+        raise FileFormatError(path, f'{what} is not UTF-8 text (byte 0x{data[exc.start]:02x} '
+                              f'at offset {exc.start}); is this the right file?', line) from None
+
+
+def read_input_text(path, what='file'):
+    """Return the content of ``path`` as text (UTF-8); see :func:`read_input_bytes`."""
+    path = os.fspath(path)
+    return decode_text(path, read_input_bytes(path, what), what)
 
 
 def load_yaml_mapping(path, what='file'):
     """Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileFormatError(path, f'{what} not found')
+    text = read_input_text(path, what)
     try:
-        with open(path, 'r', encoding='utf-8') as handle:
-            data = yaml.safe_load(handle)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         line = None
         mark = getattr(exc, 'problem_mark', None)
         if mark is not None:
             line = mark.line + 1
-        raise FileFormatError(path, f'{what} is not valid YAML ({exc})', line) from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FileFormatError(path, f'cannot read {what}: {exc}') from exc
+        reason = ' '.join(str(exc).split())
+        raise FileFormatError(path, f'{what} is not valid YAML ({reason})', line) from None
+    except (ValueError, TypeError, OverflowError, RecursionError) as exc:
+        # e.g. an impossible date (2021-13-45) or nesting too deep for the parser
+        raise FileFormatError(path, f'{what} is not valid YAML ({exc})') from None
     if not isinstance(data, dict):
         raise FileFormatError(path, f'{what} must be a YAML mapping, got '
                               f'{type(data).__name__} (empty or truncated file?)')
@@ -104,40 +147,231 @@ def read_numeric_csv(path, required, optional=(), finite=False, increasing=None)
     import numpy as np
 
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileFormatError(path, 'file not found')
-    with open(path, 'r', encoding='utf-8', newline='') as handle:
-        reader = csv.reader(handle)
-        try:
-            header = next(reader)
-        except StopIteration:
-            raise FileFormatError(path, 'empty file (expected a header line)', 1) from None
-        header = [h.strip() for h in header]
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise FileFormatError(path, f'header lacks column(s) {missing}; '
-                                  f'expected {",".join(list(required) + list(optional))}', 1)
-        wanted = [c for c in list(required) + list(optional) if c in header]
-        index = [header.index(c) for c in wanted]
-        rows = []
-        for row in reader:
-            line = reader.line_num
-            if not row or all(not f.strip() for f in row):
-                continue
-            if len(row) != len(header):
-                raise FileFormatError(path, f'expected {len(header)} fields, got {len(row)} '
-                                      '(truncated or malformed line)', line)
-            try:
-                values = [float(row[i]) for i in index]
-            except ValueError:
-                raise FileFormatError(path, f'non-numeric value in {row!r}', line) from None
-            if finite and not all(math.isfinite(v) for v in values):
-                raise FileFormatError(path, f'NaN or infinite value in {row!r}', line)
-            if increasing is not None and rows:
-                k = wanted.index(increasing)
-                if not values[k] > rows[-1][k]:
-                    raise FileFormatError(path, f'column {increasing} must increase strictly '
-                                          f'({values[k]!r} after {rows[-1][k]!r})', line)
-            rows.append(values)
-    data = np.array(rows, dtype=float).reshape(-1, len(wanted))
+    text = read_input_text(path, 'CSV file')
+    reader = csv.reader(io.StringIO(text, newline=''))
+    try:
+        rows = _numeric_rows(path, reader, required, optional, finite, increasing)
+    except csv.Error as exc:
+        raise FileFormatError(path, f'malformed CSV ({exc})', reader.line_num or 1) from None
+    data, wanted = rows
+    data = np.array(data, dtype=float).reshape(-1, len(wanted))
     return {name: data[:, k] for k, name in enumerate(wanted)}
+
+
+def _numeric_rows(path, reader, required, optional, finite, increasing):
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise FileFormatError(path, 'empty file (expected a header line)', 1) from None
+    header = [h.strip() for h in header]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise FileFormatError(path, f'header lacks column(s) {missing}; '
+                              f'expected {",".join(list(required) + list(optional))}', 1)
+    wanted = [c for c in list(required) + list(optional) if c in header]
+    index = [header.index(c) for c in wanted]
+    k_increasing = wanted.index(increasing) if increasing is not None else None
+    rows = []
+    for row in reader:
+        line = reader.line_num
+        if not row or all(not f.strip() for f in row):
+            continue
+        if len(row) != len(header):
+            raise FileFormatError(path, f'expected {len(header)} fields, got {len(row)} '
+                                  '(truncated or malformed line)', line)
+        try:
+            values = [float(row[i]) for i in index]
+        except ValueError:
+            shown = ','.join(row)
+            shown = shown if len(shown) <= 80 else shown[:77] + '...'
+            raise FileFormatError(path, f'non-numeric value in {shown!r}', line) from None
+        if finite and not all(math.isfinite(v) for v in values):
+            raise FileFormatError(path, f'NaN or infinite value in {",".join(row)!r}', line)
+        if k_increasing is not None and rows:
+            k = k_increasing
+            if not values[k] > rows[-1][k]:
+                raise FileFormatError(path, f'column {increasing} must increase strictly '
+                                      f'({values[k]!r} after {rows[-1][k]!r})', line)
+        rows.append(values)
+    return rows, wanted
+
+
+# ---------------------------------------------------------------------------------------
+# guarding the inputs of a command
+
+
+@contextlib.contextmanager
+def guard_inputs(paths=()):
+    """
+    Within the block, refuse to write over any input: ``paths`` and every file read here.
+
+    Used by the ``accelcal`` dispatcher around each command (``paths``: the command's
+    arguments that name existing files). A write with ``backup=True`` is allowed (the
+    input survives as ``.bak``).
+    """
+    previous = getattr(_guard, 'inputs', None)
+    _guard.inputs = {}
+    try:
+        for path in paths:
+            if path and os.path.exists(path):
+                _record_input(os.fspath(path))
+        yield
+    finally:
+        _guard.inputs = previous
+
+
+def refuse_overwriting_inputs(output, inputs):
+    """Raise InputError when ``output`` is one of ``inputs`` (same resolved path or inode)."""
+    output = os.fspath(output)
+    out_real = os.path.realpath(output)
+    out_ident = _identity(output)
+    for given in inputs:
+        if given is None:
+            continue
+        given = os.fspath(given)
+        same = os.path.realpath(given) == out_real or (
+            out_ident is not None and _identity(given) == out_ident)
+        if same:
+            raise InputError(f'{output}: this is also an input of the command ({given}); '
+                             'writing it would destroy the input: choose another output path')
+
+
+def _check_guard(path):
+    inputs = getattr(_guard, 'inputs', None)
+    if inputs:
+        refuse_overwriting_inputs(path, [given for given, _ in inputs.values()])
+
+
+# ---------------------------------------------------------------------------------------
+# writing
+
+
+def _umask():
+    try:
+        with open('/proc/self/status') as handle:
+            for line in handle:
+                if line.startswith('Umask:'):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # (not thread-safe; only where /proc is missing)
+    os.umask(mask)
+    return mask
+
+
+def _pid_alive(pid):
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def remove_stale_temp_files(path):
+    """Remove temporary files of ``path`` left by writers that no longer run; return them."""
+    directory = os.path.dirname(os.path.abspath(path))
+    name = os.path.basename(path)
+    removed = []
+    try:
+        entries = os.listdir(directory)
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _TEMP_PATTERN.match(entry)
+        if match and match.group('name') == name and not _pid_alive(int(match.group('pid'))):
+            try:
+                os.unlink(os.path.join(directory, entry))
+                removed.append(entry)
+            except OSError:
+                pass
+    return removed
+
+
+def _temp_name(path):
+    directory = os.path.dirname(os.path.abspath(path))
+    return os.path.join(directory, f'.{os.path.basename(path)}.{os.getpid()}-'
+                                   f'{next(_counter)}{TEMP_SUFFIX}')
+
+
+def _write_file(target, data, mode):
+    """Write ``data`` to a new temporary file beside ``target``; return its path."""
+    tmp = _temp_name(target)
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        with os.fdopen(fd, 'wb') as handle:
+            os.fchmod(handle.fileno(), mode)
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return tmp
+
+
+def write_bytes_atomic(path, data, backup=False):
+    """
+    Write ``data`` (bytes) to ``path`` atomically; keep the old file as ``path.bak``.
+
+    Raises :class:`FileWriteError` (one line naming the path) when the file cannot be
+    written, and :class:`InputError` when ``path`` is an input of the running command.
+    """
+    path = os.fspath(path)
+    if not path:
+        raise FileWriteError('""', 'empty output path')
+    if not backup:
+        _check_guard(path)
+    if os.path.isdir(path):
+        raise FileWriteError(path, 'is a directory; give a file name')
+    directory = os.path.dirname(os.path.abspath(path))
+    tmp = None
+    try:
+        if not os.path.isdir(directory):
+            os.makedirs(directory, exist_ok=True)
+        remove_stale_temp_files(path)
+        try:
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        tmp = _write_file(path, data, mode)
+        if backup and os.path.exists(path):
+            bak = path + '.bak'
+            with open(path, 'rb') as src:
+                old = src.read()
+            tmp_bak = _write_file(bak, old, mode)
+            os.replace(tmp_bak, bak)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        where = exc.filename if exc.filename and os.fspath(exc.filename) != path and \
+            not str(exc.filename).endswith(TEMP_SUFFIX) else None
+        raise FileWriteError(path, f'cannot write: {reason}'
+                             + (f' ({where})' if where else '')) from None
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def write_text_atomic(path, text, backup=False):
+    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`write_bytes_atomic`)."""
+    write_bytes_atomic(path, text.encode('utf-8'), backup=backup)
+
+
+def write_with_atomic(path, writer, backup=False, binary=False):
+    """
+    Call ``writer(handle)`` on an in-memory buffer, then write it atomically.
+
+    For writers that need a file object (numpy, csv, OpenCV encoders): nothing reaches
+    ``path`` unless ``writer`` returns without raising.
+    """
+    buffer = io.BytesIO() if binary else io.StringIO()
+    writer(buffer)
+    data = buffer.getvalue()
+    write_bytes_atomic(path, data if binary else data.encode('utf-8'), backup=backup)

@@ -14,6 +14,8 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
 import sys
 
 from accelcal_ros import STANDARD_GRAVITY
+from accelcal_ros.cli_args import (float_in, nonnegative_float, nonnegative_int,
+                                   positive_float, positive_int)
 
 
 def register(subparsers, study_subparsers):
@@ -24,14 +26,15 @@ def register(subparsers, study_subparsers):
     p.add_argument('-o', '--output', required=True, help='calibration YAML to write')
     p.add_argument('--model', default='full', choices=('full', 'diagonal'),
                    help='full (scale, bias, misalignment; default) or diagonal (paper A)')
-    p.add_argument('--min-separation-deg', type=float, default=20.0,
+    p.add_argument('--min-separation-deg', type=float_in(0.0, 180.0, low_open=True),
+                   default=20.0,
                    help='a still dwell is a new position if its direction is more than '
                         'this from every captured one (default 20)')
-    p.add_argument('--still-threshold-g', type=float, default=0.01,
+    p.add_argument('--still-threshold-g', type=positive_float, default=0.01,
                    help='moving-std threshold of the still detector in g (default 0.01)')
-    p.add_argument('--min-still-s', type=float, default=1.0,
+    p.add_argument('--min-still-s', type=positive_float, default=1.0,
                    help='minimum still time of a position in s (default 1.0)')
-    p.add_argument('--window-s', type=float, default=0.3,
+    p.add_argument('--window-s', type=positive_float, default=0.3,
                    help='moving-variance window in s (default 0.3)')
     p.add_argument('--plot', help='also write the calibration plot (PNG) here')
     p.set_defaults(handler=_calibrate)
@@ -45,11 +48,11 @@ def register(subparsers, study_subparsers):
     p = subparsers.add_parser('attitude', help='print roll/pitch of a recording')
     p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2)')
     p.add_argument('--calibration', help='calibration YAML (default: uncalibrated)')
-    p.add_argument('--time-constant-s', type=float, default=0.0,
+    p.add_argument('--time-constant-s', type=nonnegative_float, default=0.0,
                    help='low-pass time constant in s (default 0: none)')
-    p.add_argument('--accel-threshold-g', type=float, default=0.05,
+    p.add_argument('--accel-threshold-g', type=positive_float, default=0.05,
                    help='flag samples whose |f| departs from 1 g by more (default 0.05)')
-    p.add_argument('--every', type=int, default=1, help='print every N-th sample')
+    p.add_argument('--every', type=positive_int, default=1, help='print every N-th sample')
     p.add_argument('-o', '--output', help='write CSV here instead of printing')
     p.set_defaults(handler=_attitude)
 
@@ -60,8 +63,8 @@ def register(subparsers, study_subparsers):
 
     p = study_subparsers.add_parser('calibration', help='Monte Carlo accuracy of the field '
                                     'calibration vs number of positions; paper A example')
-    p.add_argument('--trials', type=int, default=100, help='calibrations per row (100)')
-    p.add_argument('--seed', type=int, default=0, help='random seed (0)')
+    p.add_argument('--trials', type=positive_int, default=100, help='calibrations per row (100)')
+    p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
     p.add_argument('--quick', action='store_true', help='20 trials, K in 6, 12, 100')
     p.set_defaults(handler=_study)
 

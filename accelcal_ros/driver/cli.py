@@ -7,6 +7,8 @@ real one over I2C, e.g.::
     accelcal record -o rec.csv --duration 60 --dwell 3 --move 1
     accelcal record -o rec.csv --backend i2c --bus 1 --rate 100 --duration 120
 """
+from accelcal_ros.cli_args import (finite_float, int_in, nonnegative_float, nonnegative_int,
+                                   positive_float)
 
 
 def register(subparsers, study_subparsers):
@@ -16,17 +18,19 @@ def register(subparsers, study_subparsers):
         description=__doc__.strip().splitlines()[0])
     parser.add_argument('-o', '--output', required=True, help='CSV file to write')
     parser.add_argument('--backend', choices=('sim', 'i2c'), default='sim')
-    parser.add_argument('--duration', type=float, default=30.0, help='seconds (default 30)')
-    parser.add_argument('--rate', type=float, default=100.0, help='output data rate, Hz')
+    parser.add_argument('--duration', type=positive_float, default=30.0,
+                        help='seconds (default 30)')
+    parser.add_argument('--rate', type=positive_float, default=100.0, help='output data rate, Hz')
     parser.add_argument('--range-g', type=int, default=16, choices=(2, 4, 8, 16))
-    parser.add_argument('--bus', type=int, default=1, help='I2C bus number')
-    parser.add_argument('--address', type=lambda v: int(v, 0), default=0x53,
+    parser.add_argument('--bus', type=nonnegative_int, default=1, help='I2C bus number')
+    parser.add_argument('--address', type=int_in(0, 0x7F), default=0x53,
                         help='I2C address (0x53 or 0x1D)')
-    parser.add_argument('--poses-deg', type=float, nargs='*', default=[],
+    parser.add_argument('--poses-deg', type=finite_float, nargs='*', default=[],
                         help='sim: roll pitch pairs in degrees (default: 24 built-in)')
-    parser.add_argument('--dwell', type=float, default=3.0, help='sim: dwell per pose, s')
-    parser.add_argument('--move', type=float, default=1.0, help='sim: move between poses, s')
-    parser.add_argument('--seed', type=int, default=0, help='sim: random seed')
+    parser.add_argument('--dwell', type=positive_float, default=3.0, help='sim: dwell per pose, s')
+    parser.add_argument('--move', type=nonnegative_float, default=1.0,
+                        help='sim: move between poses, s')
+    parser.add_argument('--seed', type=nonnegative_int, default=0, help='sim: random seed')
     parser.set_defaults(handler=_record)
 
 

@@ -4,6 +4,8 @@ Command line of the LiDAR feature (paper B).
 ``accelcal boresight``, ``accelcal georeference``, ``accelcal error-budget`` and
 ``accelcal study boresight``.
 """
+from accelcal_ros.cli_args import (angle_deg, finite_float, float_in, nonnegative_float,
+                                   positive_float, positive_int)
 
 
 def register(subparsers, study_subparsers):
@@ -15,7 +17,7 @@ def register(subparsers, study_subparsers):
                     'accelerometer paired with the floor normal from the cloud (Wahba).')
     p.add_argument('directory', metavar='DIR')
     p.add_argument('-o', '--output', required=True, help='boresight YAML to write')
-    p.add_argument('--prior-rpy-deg', nargs=3, type=float, metavar=('R', 'P', 'Y'),
+    p.add_argument('--prior-rpy-deg', nargs=3, type=angle_deg(360.0), metavar=('R', 'P', 'Y'),
                    help='nominal mounting (LiDAR -> IMU, REP-103 fixed axes, deg); guides '
                         'the floor search. Without it the floor is the plane consistent '
                         'with one rotation across all positions')
@@ -24,19 +26,21 @@ def register(subparsers, study_subparsers):
                         'the IMU logs before averaging')
     p.add_argument('--weighting', choices=('noise', 'equal'), default='equal',
                    help="pair weights: equal (paper, default) or from each pair's noise")
-    p.add_argument('--distance-threshold-m', type=float, default=0.05,
+    p.add_argument('--distance-threshold-m', type=positive_float, default=0.05,
                    help='MSAC inlier distance (default 0.05 m)')
-    p.add_argument('--max-tilt-deg', type=float, default=15.0,
+    p.add_argument('--max-tilt-deg', type=float_in(0.0, 90.0, low_open=True),
+                   default=15.0,
                    help='gravity-guided search: floor normal within this of the expected '
                         'up (default 15 deg)')
-    p.add_argument('--max-range-m', type=float, default=30.0, help='crop radius (m)')
-    p.add_argument('--voxel-m', type=float, default=0.0, help='thinning voxel (m, 0 = off)')
-    p.add_argument('--ceiling-lift-m', type=float, default=10.0,
+    p.add_argument('--max-range-m', type=positive_float, default=30.0, help='crop radius (m)')
+    p.add_argument('--voxel-m', type=nonnegative_float, default=0.0,
+                   help='thinning voxel (m, 0 = off)')
+    p.add_argument('--ceiling-lift-m', type=nonnegative_float, default=10.0,
                    help='paper B ceiling removal: lift the origin this far up ...')
-    p.add_argument('--ceiling-radius-m', type=float, default=0.0,
+    p.add_argument('--ceiling-radius-m', type=nonnegative_float, default=0.0,
                    help='... and drop points within this radius of it (0: instead drop '
                         'points higher than --max-height-m above the scanner)')
-    p.add_argument('--max-height-m', type=float, default=-0.2,
+    p.add_argument('--max-height-m', type=finite_float, default=-0.2,
                    help='floor candidates lie below this height along up (m, default -0.2)')
     p.add_argument('--skip-bad-files', action='store_true',
                    help='drop positions whose files cannot be read instead of failing')
@@ -50,9 +54,9 @@ def register(subparsers, study_subparsers):
     g.add_argument('--cloud', required=True, help='scan (.pcd/.ply) with per-point time')
     g.add_argument('--poses', required=True, help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav)')
     g.add_argument('--boresight', required=True, help='boresight YAML (R or rpy_deg)')
-    g.add_argument('--lever-arm', nargs=3, type=float, default=(0.0, 0.0, 0.0),
+    g.add_argument('--lever-arm', nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
                    metavar=('X', 'Y', 'Z'), help='LiDAR origin in the IMU frame (m)')
-    g.add_argument('--time-base', type=float, default=0.0,
+    g.add_argument('--time-base', type=finite_float, default=0.0,
                    help='scan start (s, pose clock) added to relative point times '
                         '(fields time, t); absolute "timestamp" fields are used as is')
     g.add_argument('--time-field', help='per-point time field (default: time, t or '
@@ -65,21 +69,21 @@ def register(subparsers, study_subparsers):
     e = subparsers.add_parser(
         'error-budget', help='theoretical point error, paper B eq. (1)',
         description='sqrt(D_ins^2 + D_gnss^2 + D_lidar^2 + D_boresight^2) at a range.')
-    e.add_argument('--range-m', type=float, default=100.0)
-    e.add_argument('--attitude-deg', type=float, default=0.1)
-    e.add_argument('--gnss-m', type=float, default=0.01)
-    e.add_argument('--lidar-m', type=float, default=0.03)
-    e.add_argument('--boresight-deg', type=float, nargs='+', default=[1.0, 0.3])
-    e.add_argument('--sync-s', type=float, default=0.0, help='time-sync error (s)')
-    e.add_argument('--speed-m-s', type=float, default=30 / 3.6)
-    e.add_argument('--rate-deg-s', type=float, default=180.0)
+    e.add_argument('--range-m', type=nonnegative_float, default=100.0)
+    e.add_argument('--attitude-deg', type=nonnegative_float, default=0.1)
+    e.add_argument('--gnss-m', type=nonnegative_float, default=0.01)
+    e.add_argument('--lidar-m', type=nonnegative_float, default=0.03)
+    e.add_argument('--boresight-deg', type=nonnegative_float, nargs='+', default=[1.0, 0.3])
+    e.add_argument('--sync-s', type=nonnegative_float, default=0.0, help='time-sync error (s)')
+    e.add_argument('--speed-m-s', type=nonnegative_float, default=30 / 3.6)
+    e.add_argument('--rate-deg-s', type=nonnegative_float, default=180.0)
     e.set_defaults(handler=_error_budget)
 
     s = study_subparsers.add_parser(
         'boresight', help='boresight error on the simulated 15-position protocol',
         description='Simulate the protocol of paper B (VLP-16 in a room, known boresight) '
                     'for several seeds and report the error of the recovered rotation.')
-    s.add_argument('--trials', type=int, default=5)
+    s.add_argument('--trials', type=positive_int, default=5)
     s.add_argument('--no-prior', action='store_true', help='search the floor without prior')
     s.add_argument('--weighting', choices=('noise', 'equal'), default='equal')
     s.set_defaults(handler=_study)

@@ -1,15 +1,11 @@
 """Read a point-cloud file and walk the text header at its start (PCD and PLY)."""
-import os
-
 from accelcal_ros.errors import FileFormatError
+from accelcal_ros.fileio import read_input_bytes
 
 
-def read_file_bytes(path):
-    """Return the whole content of ``path``; FileFormatError when it does not exist."""
-    if not os.path.exists(path):
-        raise FileFormatError(path, 'file not found')
-    with open(path, 'rb') as handle:
-        return handle.read()
+def read_file_bytes(path, what='point cloud file'):
+    """Return the whole content of ``path``; FileFormatError when it cannot be read."""
+    return read_input_bytes(path, what)
 
 
 def header_lines(path, raw, missing_end):

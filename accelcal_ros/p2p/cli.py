@@ -16,6 +16,8 @@ error and the following lines go on. Exit status 0, or 1 when any line was malfo
 """
 import sys
 
+from accelcal_ros.cli_args import float_in, nonnegative_int, positive_int
+
 SOLVE_HELP = """\
 Solve P2P with known vertical (paper A eq. 8): one JSON problem per input line,
 one JSON line of solutions per problem on stdout.
@@ -55,11 +57,12 @@ def register(subparsers, study_subparsers):
         description='Monte Carlo of paper A Table 2 (P2P yaw and range errors caused by '
                     "tilt errors of the paper's K=300/K=100 calibration sets against the "
                     "K=500 truth, and of the package's own K=12 calibration).")
-    study.add_argument('--trials', type=int, default=10000, help='trials (default 10000)')
-    study.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
-    study.add_argument('--elevation-deg', type=float, default=30.0,
+    study.add_argument('--trials', type=positive_int, default=10000, help='trials (default 10000)')
+    study.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (default 0)')
+    study.add_argument('--elevation-deg', type=float_in(0.0, 90.0, True, True),
+                       default=30.0,
                        help='camera elevation above the emitters seen from them (default 30)')
-    study.add_argument('--package-count', type=int, default=100,
+    study.add_argument('--package-count', type=nonnegative_int, default=100,
                        help='number of K=12 package calibrations (default 100; 0: skip)')
     study.add_argument('--no-sweep', action='store_true',
                        help='skip the elevation sweep (geometry dependence)')

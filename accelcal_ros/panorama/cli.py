@@ -8,6 +8,8 @@ Offline commands of the panorama feature.
 * ``accelcal study horizon``: paper A's Fig. 6 experiment (horizon deviation for pitch
   errors of -2 / +2 deg and for the package's own calibration error).
 """
+from accelcal_ros.cli_args import (angle_deg, finite_float, float_in, int_in, nonnegative_float,
+                                   positive_int)
 
 
 def register(subparsers, study_subparsers):
@@ -17,20 +19,24 @@ def register(subparsers, study_subparsers):
     p.add_argument('images', nargs='+', help='camera images, in rig order')
     p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
                    'K, D, R)')
-    p.add_argument('--roll', type=float, required=True,
+    p.add_argument('--roll', type=angle_deg(180.0), required=True,
                    help='reference camera roll, degrees (REP-103 body attitude)')
-    p.add_argument('--pitch', type=float, required=True,
+    p.add_argument('--pitch', type=angle_deg(90.0), required=True,
                    help='reference camera pitch, degrees (REP-103: nose down positive)')
-    p.add_argument('--fov-h', type=float, default=180.0, help='horizontal extent, deg (180)')
-    p.add_argument('--fov-v', type=float, default=120.0, help='vertical extent, deg (120)')
-    p.add_argument('--width', type=int, default=3600, help='panorama width, px (3600)')
-    p.add_argument('--height', type=int, default=2400, help='panorama height, px (2400)')
+    p.add_argument('--fov-h', type=float_in(0.0, 360.0, low_open=True), default=180.0,
+                   help='horizontal extent, deg (180)')
+    p.add_argument('--fov-v', type=float_in(0.0, 180.0, low_open=True), default=120.0,
+                   help='vertical extent, deg (120)')
+    p.add_argument('--width', type=int_in(1, 65535), default=3600,
+                   help='panorama width, px (3600)')
+    p.add_argument('--height', type=int_in(1, 65535), default=2400,
+                   help='panorama height, px (2400)')
     p.add_argument('--projection', default='spherical', choices=('spherical', 'cylindrical'),
                    help='spherical (equal angle per pixel; default) or cylindrical')
-    p.add_argument('--imu-to-camera', type=float, nargs=9, metavar='R',
+    p.add_argument('--imu-to-camera', type=finite_float, nargs=9, metavar='R',
                    help='rotation body -> reference camera optical frame, 9 row-major '
                         'values (default: camera looks along body +x)')
-    p.add_argument('--blend-deg', type=float, default=0.0,
+    p.add_argument('--blend-deg', type=nonnegative_float, default=0.0,
                    help='feathered blending band at the seams, deg (default 0: off)')
     p.add_argument('-o', '--output', required=True, help='panorama image to write (PNG)')
     p.set_defaults(handler=_stitch)
@@ -40,7 +46,7 @@ def register(subparsers, study_subparsers):
                         'own calibration error of the package')
     p.add_argument('--quick', action='store_true',
                    help='half resolution and 20 calibrations (a few seconds)')
-    p.add_argument('--count', type=int, default=100,
+    p.add_argument('--count', type=positive_int, default=100,
                    help='calibrations fitted for the own-calibration row (100)')
     p.add_argument('--out', help='folder to write the three panoramas to (PNG)')
     p.set_defaults(handler=_study)

