@@ -13,7 +13,7 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
 """
 import sys
 
-from accelcal_ros import STANDARD_GRAVITY
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 from accelcal_ros.cli_args import (float_in, nonnegative_float, nonnegative_int,
                                    positive_float, positive_int)
 
@@ -22,7 +22,9 @@ def register(subparsers, study_subparsers):
     """Add this feature's subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser('calibrate', help='fit a calibration to a recording of still '
                               'positions (CSV t,ax,ay,az in s and m/s^2)')
-    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2)')
+    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
+                   'directory, .mcap, .db3, ROS 1 .bag) with a sensor_msgs/Imu topic')
+    _add_bag_arguments(p)
     p.add_argument('-o', '--output', required=True, help='calibration YAML to write')
     p.add_argument('--model', default='full', choices=('full', 'diagonal'),
                    help='full (scale, bias, misalignment; default) or diagonal (paper A)')
@@ -40,13 +42,17 @@ def register(subparsers, study_subparsers):
     p.set_defaults(handler=_calibrate)
 
     p = subparsers.add_parser('apply', help='write calibrated samples of a recording')
-    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2)')
+    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
+                   'directory, .mcap, .db3, ROS 1 .bag) with a sensor_msgs/Imu topic')
+    _add_bag_arguments(p)
     p.add_argument('--calibration', required=True, help='calibration YAML')
     p.add_argument('-o', '--output', required=True, help='CSV to write (same format)')
     p.set_defaults(handler=_apply)
 
     p = subparsers.add_parser('attitude', help='print roll/pitch of a recording')
-    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2)')
+    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
+                   'directory, .mcap, .db3, ROS 1 .bag) with a sensor_msgs/Imu topic')
+    _add_bag_arguments(p)
     p.add_argument('--calibration', help='calibration YAML (default: uncalibrated)')
     p.add_argument('--time-constant-s', type=nonnegative_float, default=0.0,
                    help='low-pass time constant in s (default 0: none)')
@@ -85,11 +91,97 @@ def _read_recording(path):
     return t, accel / STANDARD_GRAVITY
 
 
+def _add_bag_arguments(p):
+    """Bag options of calibrate/apply/attitude (a CSV recording ignores none of them)."""
+    from accelcal_ros.recording.cli_support import add_stamp_argument
+
+    p.add_argument('--topic', help='bags: sensor_msgs/Imu topic (default: the only one)')
+    add_stamp_argument(p)
+    if p.prog.endswith(' apply'):
+        p.add_argument('--corrected-topic', help='bag output: topic of the corrected Imu '
+                       'messages (default: the input topic, replaced; another name keeps '
+                       'the raw topic beside it)')
+        p.add_argument('--format', choices=('mcap', 'sqlite3'), default='mcap',
+                       help='bag output: rosbag2 storage (default mcap; a .bag output is '
+                            'ROS 1)')
+
+
+def _read_recording_of(args):
+    """Return (t, accel in g) of a CSV recording or of a bag's Imu topic."""
+    from accelcal_ros.recording.cli_support import is_bag, open_bag, warn
+
+    if not is_bag(args.recording):
+        if args.topic:
+            from accelcal_ros.errors import InputError
+            raise InputError(f'--topic applies to bags; {args.recording} is a CSV recording')
+        return _read_recording(args.recording)
+    from accelcal_ros.recording.streams import read_imu
+
+    with open_bag(args.recording, args.stamp) as bag:
+        imu = read_imu(bag, args.topic)
+    warn(imu.warnings)
+    print(f'{args.recording}: {imu.topic}, {len(imu.t)} samples over '
+          f'{imu.t[-1] - imu.t[0]:.1f} s', file=sys.stderr)
+    return imu.t, imu.accel / STANDARD_GRAVITY
+
+
+def _writes_bag(args):
+    from accelcal_ros.recording.cli_support import is_bag, is_bag_output
+
+    return is_bag(args.recording) and is_bag_output(args.output)
+
+
+def _apply_to_bag(args, model):
+    """
+    Copy every topic of the input bag, the Imu topic with calibrated linear_acceleration.
+
+    The corrected messages keep header, covariances and receive times; the specific force
+    is ``model.correct(a / g) * g`` (m/s^2). A ROS 1 bag is written as ROS 1 (``.bag``).
+    """
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.recording.cli_support import open_bag
+    from accelcal_ros.recording.writer import BagWriter, format_for
+    import numpy as np
+
+    with open_bag(args.recording, args.stamp) as bag:
+        topic = bag.select_topic(args.topic, ('sensor_msgs/Imu',))
+        fmt = format_for(args.output, None if str(args.output).endswith('.bag') else args.format)
+        if bag.is_ros1 != (fmt == 'ros1'):
+            raise InputError(f'{args.recording} is a {"ROS 1" if bag.is_ros1 else "rosbag2"} '
+                             'bag: write the same kind (-o NAME.bag for ROS 1, a directory for '
+                             'rosbag2)')
+        out_topic = '/' + (args.corrected_topic or topic).lstrip('/')
+        topics = bag.topics()
+        corrected = 0
+        with BagWriter(args.output, fmt) as writer:
+            for name in sorted(topics):
+                conn = bag.connection_of(name)
+                qos = getattr(conn.ext, 'offered_qos_profiles', ())
+                if name != topic or out_topic != topic:
+                    writer.add_topic(name, topics[name].msgtype, qos, source=conn)
+            writer.add_topic(out_topic, 'sensor_msgs/Imu',
+                             getattr(bag.connection_of(topic).ext, 'offered_qos_profiles', ()))
+            for message in bag.messages(sorted(topics), decode=[topic]):
+                if message.topic == topic:
+                    acc = message.msg.linear_acceleration
+                    fixed = model.correct(np.array([[acc.x, acc.y, acc.z]])
+                                          / STANDARD_GRAVITY)[0] * STANDARD_GRAVITY
+                    acc.x, acc.y, acc.z = (float(v) for v in fixed)
+                    writer.write(out_topic, message.receive_ns, message.msg)
+                    corrected += 1
+                    if out_topic == topic:
+                        continue
+                writer.write_raw(message.topic, message.receive_ns, message.raw)
+    print(f'wrote {args.output}: {corrected} calibrated {out_topic} messages beside '
+          f'{len(topics) - (out_topic == topic)} copied topic(s)')
+    return 0
+
+
 def _calibrate(args):
-    from accelcal_ros.calibration.calibration_file import save_calibration
+    from accelcal_ros.sensor.calibration_file import save_calibration
     from accelcal_ros.calibration.session import Calibrator, CalibratorConfig
 
-    t, accel_g = _read_recording(args.recording)
+    t, accel_g = _read_recording_of(args)
     config = CalibratorConfig(model=args.model, min_separation_deg=args.min_separation_deg,
                               still_threshold_g=args.still_threshold_g,
                               min_still_s=args.min_still_s, window_s=args.window_s)
@@ -123,22 +215,24 @@ def _calibrate(args):
 
 
 def _apply(args):
-    from accelcal_ros.calibration.calibration_file import load_sensor_model
-    from accelcal_ros.driver.replay import save_recording
+    from accelcal_ros.sensor.calibration_file import load_sensor_model
+    from accelcal_ros.sensor.recording import save_recording
 
     model = load_sensor_model(args.calibration)
-    t, accel_g = _read_recording(args.recording)
+    if _writes_bag(args):
+        return _apply_to_bag(args, model)
+    t, accel_g = _read_recording_of(args)
     save_recording(args.output, t, model.correct(accel_g) * STANDARD_GRAVITY)
     print(f'wrote {len(t)} calibrated samples to {args.output}')
     return 0
 
 
 def _attitude(args):
-    from accelcal_ros.attitude.tilt import TiltEstimator
-    from accelcal_ros.calibration.calibration_file import load_calibration
-    from accelcal_ros.calibration.model import SensorModel
     from accelcal_ros.errors import InputError
     from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.sensor.calibration_file import load_calibration
+    from accelcal_ros.sensor.model import SensorModel
+    from accelcal_ros.sensor.tilt import TiltEstimator
     import numpy as np
 
     if args.every < 1:
@@ -154,7 +248,7 @@ def _attitude(args):
     estimator = TiltEstimator(model, tilt_std_rad=tilt_std,
                               time_constant_s=args.time_constant_s,
                               accel_threshold_g=args.accel_threshold_g)
-    t, accel_g = _read_recording(args.recording)
+    t, accel_g = _read_recording_of(args)
     lines = ['t,roll_deg,pitch_deg,roll_std_deg,pitch_std_deg,accelerating']
     for k, (ti, ai) in enumerate(zip(t, accel_g)):
         est = estimator.update(ti, ai)
