@@ -6,12 +6,28 @@ run of ``c + 1`` bytes; otherwise ``len = c >> 5`` (``7`` means "add the next by
 the back reference copies ``len + 2`` bytes from ``offset = ((c & 31) << 8) + next + 1``
 bytes back (offsets up to 8192, lengths 3..264; a reference may overlap its own output).
 
-Pure Python with numpy for the match search: :func:`compress` finds, for every position,
-the previous position holding the same 3 bytes with one vectorised sort, so the Python
-loop runs once per emitted token instead of once per byte; :func:`decompress` copies
-literal runs and references as slices. Streams written here are read by PCL and back.
+Two implementations of the same format, tested against each other:
+
+* the C library liblzf through the maintained ``python-neo-lzf`` package (module ``lzf``)
+  when it is installed: about 30-70x faster (one 28,800-point scan: read ~1 ms instead of
+  ~28 ms, write ~4 ms instead of ~270 ms; ``benchmarks/bench_pcd_lzf.py``);
+* a pure-Python fallback with numpy for the match search: :func:`compress_python` finds,
+  for every position, the previous position holding the same 3 bytes with one vectorised
+  sort, so the Python loop runs once per emitted token instead of once per byte;
+  :func:`decompress_python` copies literal runs and references as slices.
+
+:func:`compress` and :func:`decompress` use the C one when present (:data:`BACKEND` says
+which; ``ACCELCAL_LZF=python`` forces the fallback). Streams written by either are read by
+PCL and by the other.
 """
+import os
+
 import numpy as np
+
+try:
+    import lzf as _clzf
+except ImportError:  # python-neo-lzf not installed: pure Python below
+    _clzf = None
 
 MAX_OFFSET = 8192
 MAX_LITERAL = 32
@@ -21,13 +37,67 @@ MAX_MATCH = 264
 class LzfError(ValueError):
     """The compressed stream is corrupt or does not match the expected size."""
 
-    def __init__(self, message, offset):
+    def __init__(self, message, offset=None):
         self.offset = offset
-        super().__init__(f'{message} (at compressed byte {offset})')
+        super().__init__(message if offset is None else
+                         f'{message} (at compressed byte {offset})')
 
 
-def decompress(data, expected_size):
+def c_available() -> bool:
+    """Whether the C implementation (package ``python-neo-lzf``) is installed."""
+    return _clzf is not None
+
+
+def _use_c() -> bool:
+    return _clzf is not None and os.environ.get('ACCELCAL_LZF', '').lower() != 'python'
+
+
+BACKEND = 'c' if _use_c() else 'python'
+
+
+def compress(data) -> bytes:
+    """Return ``data`` LZF-compressed (C liblzf when installed, else pure Python)."""
+    return compress_c(data) if _use_c() else compress_python(data)
+
+
+def decompress(data, expected_size: int) -> bytes:
     """Return the ``expected_size`` bytes encoded in ``data``; :class:`LzfError` if corrupt."""
+    return decompress_c(data, expected_size) if _use_c() else \
+        decompress_python(data, expected_size)
+
+
+def compress_c(data) -> bytes:
+    """Compress with liblzf (``python-neo-lzf``); the stream never exceeds the worst case."""
+    raw = bytes(data)
+    if not raw:
+        return b''
+    # liblzf's worst case: one control byte per 32 literals
+    out = _clzf.compress(raw, len(raw) + len(raw) // 32 + 16)
+    if out is None:  # cannot happen within the worst-case bound; be safe
+        return compress_python(raw)
+    return bytes(out)
+
+
+def decompress_c(data, expected_size: int) -> bytes:
+    """Decompress with liblzf; :class:`LzfError` when corrupt or not ``expected_size``."""
+    src = bytes(data)
+    if expected_size == 0 or not src:
+        if expected_size == 0 and not src:
+            return b''
+        raise LzfError(f'stream of {len(src)} bytes cannot hold {expected_size} bytes')
+    try:
+        out = _clzf.decompress(src, expected_size)
+    except ValueError as exc:
+        raise LzfError(f'corrupt stream ({exc})') from None
+    if out is None:
+        raise LzfError(f'stream is corrupt or decodes to more than {expected_size} bytes')
+    if len(out) != expected_size:
+        raise LzfError(f'stream ends after {len(out)} of {expected_size} expected bytes')
+    return bytes(out)
+
+
+def decompress_python(data, expected_size: int) -> bytes:
+    """Pure-Python :func:`decompress` (the fallback; same errors)."""
     src = bytes(data)
     out = bytearray()
     n = len(src)
@@ -83,8 +153,8 @@ def _previous_match(buf):
     return prev
 
 
-def compress(data):
-    """Return ``data`` (bytes-like) LZF-compressed (greedy, nearest 3-byte match)."""
+def compress_python(data) -> bytes:
+    """Return ``data`` (bytes-like) LZF-compressed in pure Python (greedy, nearest match)."""
     raw = bytes(data)
     n = len(raw)
     if n == 0:

@@ -27,6 +27,8 @@ _HEADER_KEYS = ('VERSION', 'FIELDS', 'SIZE', 'TYPE', 'COUNT', 'WIDTH', 'HEIGHT',
 
 def _dtype_from_header(path, header, lines):
     fields = header['FIELDS']
+    if not fields:
+        raise FileFormatError(path, 'FIELDS names no field', lines.get('FIELDS'))
     sizes = header.get('SIZE')
     types = header.get('TYPE')
     counts = header.get('COUNT', ['1'] * len(fields))
@@ -89,12 +91,12 @@ def read_pcd(path):
     except (ValueError, IndexError):
         raise FileFormatError(path, 'WIDTH, HEIGHT or POINTS is not an integer',
                               lines.get('POINTS', lines.get('WIDTH'))) from None
-    if points < 0 or (width * height != points and 'WIDTH' in header):
+    if min(points, width, height) < 0 or (width * height != points and 'WIDTH' in header):
         raise FileFormatError(path, f'POINTS {points} != WIDTH {width} x HEIGHT {height}',
                               lines.get('POINTS'))
     kind = (header['DATA'] or [''])[0].lower()
     meta = {'data': kind, 'width': width, 'height': height,
-            'viewpoint': [float(v) for v in header.get('VIEWPOINT', [0, 0, 0, 1, 0, 0, 0])]}
+            'viewpoint': _viewpoint(path, header, lines)}
     if kind == 'ascii':
         cloud = _read_ascii(path, raw[offset:], dtype, points, data_line)
     elif kind == 'binary':
@@ -109,6 +111,19 @@ def read_pcd(path):
         raise FileFormatError(path, f'unsupported DATA {kind!r} (ascii, binary or '
                               'binary_compressed)', data_line)
     return cloud, meta
+
+
+def _viewpoint(path, header, lines):
+    """VIEWPOINT ``tx ty tz qw qx qy qz`` as 7 finite floats (default: identity)."""
+    values = header.get('VIEWPOINT', ['0', '0', '0', '1', '0', '0', '0'])
+    try:
+        viewpoint = [float(v) for v in values]
+    except ValueError:
+        viewpoint = None
+    if viewpoint is None or len(viewpoint) != 7 or not np.all(np.isfinite(viewpoint)):
+        raise FileFormatError(path, f'VIEWPOINT must be 7 finite numbers (tx ty tz qw qx qy '
+                              f'qz), got {" ".join(values)!r}', lines.get('VIEWPOINT'))
+    return viewpoint
 
 
 def _read_ascii(path, body, dtype, points, data_line):

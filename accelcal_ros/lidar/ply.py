@@ -41,16 +41,14 @@ def read_ply(path):
             fmt = parts[1]
         elif parts[0] == 'element' and len(parts) == 3:
             try:
-                elements.append([parts[1], int(parts[2]), []])
+                count = int(parts[2])
             except ValueError:
-                raise FileFormatError(path, f'bad element count in {text!r}', line_no) from None
+                count = -1
+            if count < 0:
+                raise FileFormatError(path, f'bad element count in {text!r}', line_no)
+            elements.append([parts[1], count, []])
         elif parts[0] == 'property' and elements:
-            if parts[1] == 'list':
-                elements[-1][2].append(('list', parts[-1]))
-            elif len(parts) == 3 and parts[1] in _PLY_TYPES:
-                elements[-1][2].append((parts[2], _PLY_TYPES[parts[1]]))
-            else:
-                raise FileFormatError(path, f'unsupported property {text!r}', line_no)
+            _add_property(path, elements[-1][2], parts, text, line_no)
         elif parts[0] == 'end_header':
             break
         else:
@@ -62,6 +60,8 @@ def read_ply(path):
     _, count, props = elements[0]
     if any(p[0] == 'list' for p in props):
         raise FileFormatError(path, 'list properties in the vertex element are not supported')
+    if not props:
+        raise FileFormatError(path, 'the vertex element has no property')
     dtype = np.dtype([(name, '<' + code) for name, code in props])
     if fmt == 'binary_little_endian':
         need = count * dtype.itemsize
@@ -70,7 +70,6 @@ def read_ply(path):
                                   f'bytes after byte offset {offset}')
         return np.frombuffer(raw, dtype=dtype, count=count, offset=offset).copy()
     lines = raw[offset:].decode('ascii', errors='replace').splitlines()
-    cloud = np.zeros(count, dtype=dtype)
     rows = []
     number = line_no
     for line in lines:
@@ -91,9 +90,26 @@ def read_ply(path):
         raise FileFormatError(path, f'only {len(rows)} of {count} vertices (truncated file)',
                               number)
     table = np.array(rows, dtype=float).reshape(count, len(props))
+    cloud = np.zeros(count, dtype=dtype)
     for k, (name, _) in enumerate(props):
         cloud[name] = table[:, k]
     return cloud
+
+
+def _add_property(path, props, parts, text, line_no):
+    """Append ``(name, code)`` of a ``property TYPE NAME`` line (``list`` ones as 'list')."""
+    if len(parts) >= 2 and parts[1] == 'list':
+        if len(parts) != 5:
+            raise FileFormatError(path, f'malformed list property {text!r} (property list '
+                                  'COUNT_TYPE ITEM_TYPE NAME)', line_no)
+        props.append(('list', parts[-1]))
+        return
+    if len(parts) != 3 or parts[1] not in _PLY_TYPES:
+        raise FileFormatError(path, f'unsupported property {text!r} (property TYPE NAME, '
+                              f'TYPE one of {", ".join(sorted(_PLY_TYPES))})', line_no)
+    if any(name == parts[2] for name, _ in props):
+        raise FileFormatError(path, f'property {parts[2]!r} defined twice', line_no)
+    props.append((parts[2], _PLY_TYPES[parts[1]]))
 
 
 def ply_bytes(cloud, binary=True):

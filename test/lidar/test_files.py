@@ -19,31 +19,58 @@ def _cloud(n=500, seed=0):
                       np.arange(n) % 16, np.linspace(0, 0.1, n))
 
 
-def test_lzf_hand_made_stream():
+_BACKENDS = [(lzf.compress_python, lzf.decompress_python, 'python')]
+if lzf.c_available():
+    _BACKENDS.append((lzf.compress_c, lzf.decompress_c, 'c'))
+_IDS = [b[2] for b in _BACKENDS]
+
+
+@pytest.mark.parametrize('backend', _BACKENDS, ids=_IDS)
+def test_lzf_hand_made_stream(backend):
     """A literal then an overlapping back reference, as liblzf encodes runs."""
-    assert lzf.decompress(b'\x00a\xe0\x00\x00', 10) == b'a' * 10
+    _, decompress, _ = backend
+    assert decompress(b'\x00a\xe0\x00\x00', 10) == b'a' * 10
     # literal "abc", then a reference of length 3 at offset 3 -> "abcabc"
-    assert lzf.decompress(b'\x02abc\x20\x02', 6) == b'abcabc'
+    assert decompress(b'\x02abc\x20\x02', 6) == b'abcabc'
 
 
 @settings(max_examples=60, deadline=None)
 @given(st.binary(max_size=3000), st.integers(1, 5))
-def test_lzf_round_trip(data, repeat):
-    """Compress then decompress gives the input back, for random and repetitive data."""
+def test_lzf_round_trip_and_cross_decompression(data, repeat):
+    """Each backend's stream decompresses to the input with every backend (C <-> Python)."""
     for blob in (data, data * repeat):
-        packed = lzf.compress(blob)
-        assert lzf.decompress(packed, len(blob)) == blob
+        for compress, _, _ in _BACKENDS:
+            packed = compress(blob)
+            for _, decompress, _ in _BACKENDS:
+                assert decompress(packed, len(blob)) == blob
 
 
-def test_lzf_compresses_repetition_and_rejects_corruption():
-    """Repetitive data shrinks; corrupt or short streams raise with an offset."""
+def test_lzf_cross_decompression_of_a_scan():
+    """A real binary_compressed payload (field-major floats) crosses between the backends."""
+    blob = _cloud(3000).tobytes()
+    for compress, _, _ in _BACKENDS:
+        packed = compress(blob)
+        assert len(packed) < len(blob)
+        for _, decompress, _ in _BACKENDS:
+            assert decompress(packed, len(blob)) == blob
+    assert lzf.BACKEND in ('c', 'python')
+
+
+@pytest.mark.parametrize('backend', _BACKENDS, ids=_IDS)
+def test_lzf_compresses_repetition_and_rejects_corruption(backend):
+    """Repetitive data shrinks; corrupt, short or oversized streams raise LzfError."""
+    compress, decompress, name = backend
     blob = np.repeat(np.arange(50, dtype=np.uint16), 400).tobytes()
-    packed = lzf.compress(blob)
+    packed = compress(blob)
     assert len(packed) < len(blob) / 20
-    with pytest.raises(lzf.LzfError, match='compressed byte'):
-        lzf.decompress(packed[:-3], len(blob))
+    with pytest.raises(lzf.LzfError, match='compressed byte' if name == 'python' else None):
+        decompress(packed[:-3], len(blob))
     with pytest.raises(lzf.LzfError):
-        lzf.decompress(b'\x20\x05', 3)  # reference before the start
+        decompress(b'\x20\x05', 3)  # reference before the start
+    with pytest.raises(lzf.LzfError):
+        decompress(packed, len(blob) - 1)  # decodes to more than expected
+    with pytest.raises(lzf.LzfError):
+        decompress(packed, len(blob) + 1)  # decodes to less than expected
 
 
 @pytest.mark.parametrize('data', ['ascii', 'binary', 'binary_compressed'])
