@@ -56,7 +56,7 @@ def main():
                 for field in cloud.dtype.names:
                     np.testing.assert_array_equal(back[field], cloud[field])
         os.environ.pop('ACCELCAL_LZF', None)
-    print(f'  cross-decompression: every backend reads every backend\'s file '
+    print(f'  cross-decompression: each backend reads the files of all '
           f'({", ".join(backends)}): identical')
     if 'c' in figures:
         (pr, pw), (cr, cw) = figures['python'], figures['c']
