@@ -41,3 +41,137 @@ def test_yaml_errors_name_file_and_line(tmp_path):
     good.write_text(dump_yaml({'scale': [1.0, 2.0], 'model': 'full'}))
     assert good.read_text().startswith('scale: [1.0, 2.0]\n')
     assert load_yaml_mapping(good) == {'scale': [1.0, 2.0], 'model': 'full'}
+
+
+def test_readers_name_the_file_for_missing_directory_and_non_utf8(tmp_path):
+    """Missing file, directory and non-UTF-8 bytes are FileFormatErrors (with the line)."""
+    from accelcal_ros.fileio import read_input_bytes, read_numeric_csv
+
+    binary = tmp_path / 'rec.csv'
+    binary.write_bytes(b't,ax,ay,az\n0,1,2,3\n\xff\xfe,1,2,3\n')
+    for reader in (lambda p: read_numeric_csv(p, ('t', 'ax')), load_yaml_mapping,
+                   read_input_bytes):
+        with pytest.raises(FileFormatError, match='not found'):
+            reader(tmp_path / 'none')
+        with pytest.raises(FileFormatError, match='is a directory'):
+            reader(tmp_path)
+    with pytest.raises(FileFormatError, match='not UTF-8') as info:
+        read_numeric_csv(binary, ('t', 'ax'))
+    assert info.value.line == 3
+    with pytest.raises(FileFormatError, match='not UTF-8'):
+        load_yaml_mapping(binary)
+    nul = tmp_path / 'nul.csv'
+    nul.write_bytes(b't,ax\n0,\x001\n')
+    with pytest.raises(FileFormatError):
+        read_numeric_csv(nul, ('t', 'ax'))
+    date = tmp_path / 'date.yaml'
+    date.write_text('when: 2021-13-45\n')  # YAML timestamp that is no date: ValueError
+    with pytest.raises(FileFormatError, match='not valid YAML'):
+        load_yaml_mapping(date)
+
+
+@pytest.mark.parametrize('target', ['dir', 'proc', 'readonly', 'file_as_parent'])
+def test_write_failures_are_one_error_naming_the_path(tmp_path, target):
+    """A directory, /proc, a read-only folder or a file as parent: FileWriteError."""
+    from accelcal_ros.errors import FileWriteError
+
+    if target == 'dir':
+        path = tmp_path
+    elif target == 'proc':
+        path = '/proc/accelcal-test.yaml'
+    elif target == 'readonly':
+        folder = tmp_path / 'ro'
+        folder.mkdir()
+        folder.chmod(0o555)
+        path = folder / 'out.yaml'
+        if os.access(folder, os.W_OK):  # root ignores the mode: use /proc/self instead
+            path = '/proc/self/accelcal-test.yaml'
+    else:
+        (tmp_path / 'plain').write_text('x')
+        path = tmp_path / 'plain' / 'out.yaml'
+    with pytest.raises(FileWriteError) as info:
+        write_text_atomic(path, 'data\n')
+    assert str(path) in str(info.value) and '\n' not in str(info.value)
+
+
+def test_atomic_write_keeps_the_mode_and_new_files_follow_the_umask(tmp_path):
+    """Replacing a 0644 (or 0640) file keeps its mode; a new file gets 0666 & ~umask."""
+    path = tmp_path / 'calib.yaml'
+    for mode in (0o644, 0o640, 0o600):
+        path.write_text('old\n')
+        path.chmod(mode)
+        write_text_atomic(path, 'new\n')
+        assert path.stat().st_mode & 0o777 == mode and path.read_text() == 'new\n'
+    old = os.umask(0o027)
+    try:
+        write_text_atomic(tmp_path / 'fresh.yaml', 'x\n')
+    finally:
+        os.umask(old)
+    assert (tmp_path / 'fresh.yaml').stat().st_mode & 0o777 == 0o640
+
+
+def test_stale_temp_files_of_dead_writers_are_removed(tmp_path):
+    """A temp file of a pid that no longer runs goes; one of a live pid stays."""
+    import subprocess
+    import sys
+
+    from accelcal_ros.fileio import TEMP_SUFFIX
+
+    child = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'],
+                           capture_output=True, text=True, check=True)
+    dead = int(child.stdout)
+    stale = tmp_path / f'.out.csv.{dead}-0{TEMP_SUFFIX}'
+    live = tmp_path / f'.out.csv.{os.getppid()}-0{TEMP_SUFFIX}'
+    other = tmp_path / f'.other.csv.{dead}-0{TEMP_SUFFIX}'
+    for p in (stale, live, other):
+        p.write_text('half')
+    write_text_atomic(tmp_path / 'out.csv', 'whole\n')
+    assert not stale.exists() and live.exists() and other.exists()
+    assert (tmp_path / 'out.csv').read_text() == 'whole\n'
+
+
+def test_guarded_command_cannot_overwrite_its_inputs(tmp_path):
+    """Inside guard_inputs, writing a file that was read (or given) is refused."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.fileio import guard_inputs, read_numeric_csv
+
+    rec = tmp_path / 'rec.csv'
+    rec.write_text('t,ax\n0,1\n')
+    link = tmp_path / 'link.csv'
+    os.link(rec, link)
+    with guard_inputs():
+        read_numeric_csv(rec, ('t', 'ax'))
+        for target in (rec, link, tmp_path / '.' / 'rec.csv'):
+            with pytest.raises(InputError, match='also an input'):
+                write_text_atomic(target, 'gone\n')
+        write_text_atomic(rec, 't,ax\n0,2\n', backup=True)  # the input survives as .bak
+        write_text_atomic(tmp_path / 'out.csv', 'fine\n')
+    assert (tmp_path / 'rec.csv.bak').read_text() == 't,ax\n0,1\n'
+    write_text_atomic(rec, 'free again\n')  # outside the guard
+
+
+@pytest.mark.parametrize('command', [
+    ['apply', '{rec}', '--calibration', '{cal}', '-o', '{rec}'],
+    ['apply', '{rec}', '--calibration', '{cal}', '-o', '{cal}'],
+    ['plot-calibration', '{cal}', '-o', '{cal}'],
+    ['calibrate', '{rec}', '-o', '{rec}'],
+    ['attitude', '{rec}', '-o', '{rec}'],
+    ['georeference', '--cloud', '{pcd}', '--poses', '{rec}', '--boresight', '{cal}',
+     '-o', '{pcd}'],
+    ['stitch', '--rig', '{cal}', '--roll', '0', '--pitch', '0', '-o', '{pcd}', '{pcd}'],
+])
+def test_accelcal_refuses_to_write_over_an_input(tmp_path, capsys, command):
+    """`accelcal ... -o INPUT` is one error line, status 1, and the input is untouched."""
+    from accelcal_ros.cli import main
+
+    files = {'rec': tmp_path / 'rec.csv', 'cal': tmp_path / 'c.yaml',
+             'pcd': tmp_path / 'scan.pcd'}
+    for name, path in files.items():
+        path.write_text(f'{name} content\n')
+        path.chmod(0o644)
+    argv = [a.format(**{k: str(v) for k, v in files.items()}) for a in command]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert 'also an input' in err and len(err.strip().splitlines()) == 1
+    for name, path in files.items():
+        assert path.read_text() == f'{name} content\n'
