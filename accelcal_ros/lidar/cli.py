@@ -15,7 +15,10 @@ def register(subparsers, study_subparsers):
         description='Calibrate the rotation LiDAR -> IMU from DIR/posNN.pcd|ply + '
                     'DIR/posNN_imu.csv (one pair per static position): gravity from the '
                     'accelerometer paired with the floor normal from the cloud (Wahba).')
-    p.add_argument('directory', metavar='DIR')
+    p.add_argument('directory', metavar='DIR|BAG',
+                   help='directory of posNN files, or one continuous recording (rosbag2 '
+                        'directory, .mcap, .db3, ROS 1 .bag) with --points and --imu')
+    _add_boresight_bag_arguments(p)
     p.add_argument('-o', '--output', required=True, help='boresight YAML to write')
     p.add_argument('--prior-rpy-deg', nargs=3, type=angle_deg(360.0), metavar=('R', 'P', 'Y'),
                    help='nominal mounting (LiDAR -> IMU, REP-103 fixed axes, deg); guides '
@@ -51,8 +54,9 @@ def register(subparsers, study_subparsers):
         'georeference', help='place LiDAR points in the navigation frame',
         description='p_nav = C(t) (R p_lidar + lever) + r(t) with the pose interpolated to '
                     "each point's time (linear position, slerp orientation).")
-    g.add_argument('--cloud', required=True, help='scan (.pcd/.ply) with per-point time')
-    g.add_argument('--poses', required=True, help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav)')
+    g.add_argument('--cloud', help='scan (.pcd/.ply) with per-point time (or a BAG)')
+    g.add_argument('--poses', help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav; or --odom)')
+    _add_georeference_bag_arguments(g)
     g.add_argument('--boresight', required=True, help='boresight YAML (R or rpy_deg)')
     g.add_argument('--lever-arm', nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
                    metavar=('X', 'Y', 'Z'), help='LiDAR origin in the IMU frame (m)')
@@ -89,6 +93,93 @@ def register(subparsers, study_subparsers):
     s.set_defaults(handler=_study)
 
 
+def _is_bag(path):
+    from accelcal_ros.recording.cli_support import is_bag
+
+    return is_bag(path)
+
+
+def _add_boresight_bag_arguments(p):
+    """Options of ``boresight BAG``: topics, stamps, scans per still period."""
+    from accelcal_ros.recording.cli_support import add_stamp_argument
+
+    p.add_argument('--points', metavar='TOPIC',
+                   help='bag: sensor_msgs/PointCloud2 topic (default: the only one)')
+    p.add_argument('--imu', metavar='TOPIC',
+                   help='bag: sensor_msgs/Imu topic (default: the only one); its gyro, when '
+                        'provided, else its accelerometer, finds the still periods')
+    p.add_argument('--clouds-per-position', type=int, default=1,
+                   help='bag: scans nearest the middle of each still period used (default 1)')
+    add_stamp_argument(p)
+
+
+def _boresight_from_bag(args, prior, model):
+    """Boresight of one continuous recording (positions from its still periods)."""
+    from accelcal_ros.errors import CalibrationError
+    from accelcal_ros.lidar.boresight import calibrate_boresight
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.recording.lidar_bag import collect_positions
+
+    with open_bag(args.directory, args.stamp) as bag:
+        positions, dropped, spans, warnings = collect_positions(
+            bag, args.points, args.imu, model, args.clouds_per_position)
+    warn(warnings)
+    for line in spans:
+        print(line)
+    if not positions:
+        reasons = '; '.join(f'{k}: {v}' for k, v in dropped.items())
+        raise CalibrationError(f'no usable position in {args.directory}: {reasons}')
+    result = calibrate_boresight(positions, prior=prior, search=_search_from(args),
+                                 weighting=args.weighting)
+    merged = dict(dropped)
+    merged.update(result.dropped)
+    result.dropped = merged
+    return result
+
+
+def _add_georeference_bag_arguments(g):
+    """Options of ``georeference BAG``."""
+    from accelcal_ros.recording.cli_support import add_stamp_argument
+
+    g.add_argument('bag', nargs='?', metavar='BAG',
+                   help='recording (rosbag2 directory, .mcap, .db3, ROS 1 .bag) with the scans '
+                        '(--points) and the poses (--odom, or --poses CSV)')
+    g.add_argument('--points', metavar='TOPIC',
+                   help='bag: sensor_msgs/PointCloud2 topic (default: the only one)')
+    g.add_argument('--odom', metavar='TOPIC',
+                   help='bag: nav_msgs/Odometry topic, pose of the IMU in the nav frame '
+                        '(default: the only one, unless --poses is given)')
+    add_stamp_argument(g)
+
+
+def _georeference_bag(args):
+    """Georeference every scan of a bag's PointCloud2 topic into one cloud."""
+    from accelcal_ros.lidar.boresight import load_boresight
+    from accelcal_ros.lidar.cloud import write_cloud
+    from accelcal_ros.lidar.poses import PoseStream, read_poses_csv
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.recording.lidar_bag import georeference_scans
+    from accelcal_ros.recording.streams import read_odometry
+
+    boresight = load_boresight(args.boresight)
+    with open_bag(args.bag, args.stamp) as bag:
+        if args.poses and not args.odom:
+            poses = read_poses_csv(args.poses)
+        else:
+            odom = read_odometry(bag, args.odom)
+            warn(odom.warnings)
+            poses = PoseStream(odom.t, odom.position, odom.quat)
+        cloud, totals, warnings = georeference_scans(bag, args.points, poses, boresight,
+                                                     args.lever_arm, args.time_field)
+    warn(warnings)
+    write_cloud(args.output, cloud, args.data)
+    print(f'{totals["kept"]} of {totals["total"]} points georeferenced; dropped '
+          f'{totals["before_span"]} before and {totals["after_span"]} after the pose stream, '
+          f'{totals["non_finite"]} non-finite')
+    print(f'wrote {args.output}')
+    return 0
+
+
 def _search_from(args):
     from accelcal_ros.lidar.plane_fit import FloorSearch
 
@@ -115,8 +206,11 @@ def _boresight(args):
         from accelcal_ros.lidar.static_segments import load_calibration_model
 
         model = load_calibration_model(args.calibration)
-    result = calibrate_directory(args.directory, prior, model, _search_from(args),
-                                 args.weighting, args.skip_bad_files)
+    if _is_bag(args.directory):
+        result = _boresight_from_bag(args, prior, model)
+    else:
+        result = calibrate_directory(args.directory, prior, model, _search_from(args),
+                                     args.weighting, args.skip_bad_files)
     for line in report_lines(result):
         print(line)
     write_result(args.output, result, {'prior_rpy_deg': list(args.prior_rpy_deg)
@@ -129,6 +223,13 @@ def _boresight(args):
 
 
 def _georeference(args):
+    if args.bag:
+        return _georeference_bag(args)
+    if not args.cloud or not args.poses:
+        from accelcal_ros.errors import InputError
+
+        raise InputError('georeference needs --cloud and --poses, or a BAG with --points and '
+                         '--odom (or --poses)')
     from accelcal_ros.lidar.boresight import load_boresight
     from accelcal_ros.lidar.cloud import make_cloud, point_times, read_cloud, write_cloud, xyz
     from accelcal_ros.lidar.georef import georeference

@@ -200,3 +200,45 @@ class BagWriter:
             angular_velocity=vec(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=gyro_cov,
             linear_acceleration=vec(x=a[0], y=a[1], z=a[2]),
             linear_acceleration_covariance=accel_cov)
+
+    def pointcloud2_message(self, t_ns: int, cloud: np.ndarray, frame_id: str,
+                            topic: str = ''):
+        """Return an unorganised sensor_msgs/PointCloud2 holding structured array ``cloud``."""
+        codes = {'i1': 1, 'u1': 2, 'i2': 3, 'u2': 4, 'i4': 5, 'u4': 6, 'f4': 7, 'f8': 8}
+        cloud = np.ascontiguousarray(cloud)
+        packed = np.dtype([(n, cloud.dtype[n].newbyteorder('<')) for n in cloud.dtype.names])
+        data = np.zeros(len(cloud), dtype=packed)
+        types = self.typestore.types
+        field_type = types['sensor_msgs/msg/PointField']
+        fields = []
+        for name in cloud.dtype.names:
+            data[name] = cloud[name]
+            code = codes.get(packed[name].str[1:])
+            if code is None:
+                raise InputError(f'cloud field {name!r} ({packed[name]}) has no PointField type')
+            fields.append(field_type(name=name, offset=packed.fields[name][1], datatype=code,
+                                     count=1))
+        return types['sensor_msgs/msg/PointCloud2'](
+            header=self.header(t_ns, frame_id, topic), height=1, width=len(cloud),
+            fields=fields, is_bigendian=False, point_step=packed.itemsize,
+            row_step=packed.itemsize * len(cloud),
+            data=np.frombuffer(data.tobytes(), dtype=np.uint8), is_dense=True)
+
+    def odometry_message(self, t_ns: int, position_m, quat_xyzw, frame_id: str,
+                         child_frame_id: str, topic: str = ''):
+        """Return a nav_msgs/Odometry: pose of ``child_frame_id`` in ``frame_id`` (no twist)."""
+        types = self.typestore.types
+        p = [float(v) for v in position_m]
+        q = [float(v) for v in quat_xyzw]
+        pose = types['geometry_msgs/msg/Pose'](
+            position=types['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2]),
+            orientation=types['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3]))
+        vec = types['geometry_msgs/msg/Vector3']
+        twist = types['geometry_msgs/msg/Twist'](linear=vec(x=0.0, y=0.0, z=0.0),
+                                                 angular=vec(x=0.0, y=0.0, z=0.0))
+        return types['nav_msgs/msg/Odometry'](
+            header=self.header(t_ns, frame_id, topic), child_frame_id=child_frame_id,
+            pose=types['geometry_msgs/msg/PoseWithCovariance'](pose=pose,
+                                                              covariance=np.zeros(36)),
+            twist=types['geometry_msgs/msg/TwistWithCovariance'](twist=twist,
+                                                                covariance=np.zeros(36)))
