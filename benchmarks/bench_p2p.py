@@ -64,7 +64,7 @@ def main():
     up = rotation @ np.array([0.0, 0.0, -1.0])
     detect_s = best_of(lambda: beacons.detect_beacons(image, settings), repeats * 10)
     full_s = best_of(lambda: solver.solve(beacons.detect_beacons(
-        image, settings, camera.camera_matrix, camera.dist_coeffs, down=up).rays, points, up),
+        image, settings, camera, down=up).rays, points, up),
         repeats * 10)
     corners = render.draw_spots((960, 1280), [[20.0, 20.0], [1260.0, 940.0]], 1.8, 240.0)
     corners = np.clip(corners + rng.standard_normal(corners.shape) * 2.0, 0, 255)

@@ -48,17 +48,18 @@ def _coefficients(d: Sequence, model: str, where: str) -> Tuple[np.ndarray, str]
                              f'one of {", ".join(DISTORTION_MODELS)}')
     if model == EQUIDISTANT:
         if d.size not in (0, 4):
-            raise InputError(f'{where}D: equidistant distortion needs 4 coefficients '
-                             f'[k1, k2, k3, k4], got {d.size}')
+            raise InputError(f'{where}D needs 4 coefficients [k1, k2, k3, k4] for '
+                             f'equidistant distortion, got {d.size}')
         return (d if d.size else np.zeros(4)), model
     if d.size not in (0, 4, 5, 8):
-        raise InputError(f'{where}D: expected 4, 5 or 8 coefficients [k1, k2, p1, p2'
+        raise InputError(f'{where}D needs 4, 5 or 8 coefficients [k1, k2, p1, p2'
                          f'[, k3[, k4, k5, k6]]], got {d.size}')
     if d.size == 8 and model == PLUMB_BOB:
+        # OpenCV reads D by its length: 8 values are the rational model
         if np.any(d[5:]):
-            raise InputError(f'{where}D: 8 coefficients with k4..k6 set need '
-                             'distortion_model rational_polynomial, not plumb_bob')
-        d = d[:5]
+            model = RATIONAL_POLYNOMIAL
+        else:
+            d = d[:5]
     count = COEFFICIENT_COUNTS[model]
     out = np.zeros(count)
     out[:d.size] = d

@@ -4,7 +4,7 @@ Find the two emitters of the P2P target in an image (pure core: numpy + OpenCV).
 Pipeline: grey image -> fixed threshold -> 8-connected components
 (``cv2.connectedComponentsWithStats``) -> size and brightness limits -> intensity-weighted
 sub-pixel centroids -> exactly two candidates required -> ordering (which blob is M1)
--> undistortion with the camera's ``K`` and ``D`` (``cv2.undistortPoints``; ROS
+-> undistortion by the camera model (:class:`accelcal_ros.camera.CameraModel`: ROS
 ``plumb_bob``/``rational_polynomial`` and ``equidistant`` models).
 
 Pixel convention (OpenCV): the centre of pixel (column u, row v) is at ``(u, v)``.
@@ -15,7 +15,9 @@ Zero, one or three-plus candidates give no detection, with a reason that says wh
 change (:attr:`BeaconDetection.reason`).
 """
 from dataclasses import dataclass, field
+from typing import Optional, Tuple
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
 import numpy as np
 
@@ -25,8 +27,6 @@ ORDERS = ('left_to_right', 'right_to_left', 'top_to_bottom', 'bottom_to_top',
 camera, gravity-aware when ``down`` is given (left/right of the horizon, so a rolled
 camera keeps the order), else by image column. ``larger_first``/``brighter_first``: M1
 is the blob with more pixels / more total intensity."""
-
-DISTORTION_MODELS = ('plumb_bob', 'rational_polynomial', 'equidistant', '')
 
 
 @dataclass(frozen=True)
@@ -98,9 +98,9 @@ class BeaconDetection:
     blobs: list = field(default_factory=list)
     rejected: dict = field(default_factory=dict)
     brightest: int = 0
-    uv: np.ndarray = None
-    uv_undistorted: np.ndarray = None
-    rays: np.ndarray = None
+    uv: Optional[np.ndarray] = None
+    uv_undistorted: Optional[np.ndarray] = None
+    rays: Optional[np.ndarray] = None
 
     def quality(self):
         """Return a flat dict of quality figures (diagnostics key/values)."""
@@ -190,11 +190,12 @@ def find_blobs(grey, settings):
     return blobs, rejected, brightest
 
 
-def order_blobs(blobs, order, camera_matrix=None, down=None):
+def order_blobs(blobs: list, order: str, camera: Optional[CameraModel] = None,
+                down: Optional[np.ndarray] = None) -> list:
     """
     Return the two blobs as (M1, M2) by ``order`` (:data:`ORDERS`).
 
-    ``left_to_right`` with ``camera_matrix`` and ``down`` (camera frame) compares the
+    ``left_to_right`` with ``camera`` and ``down`` (camera optical frame) compares the
     rays along the camera's level "right" axis ``down x z`` (horizontal), so the order
     holds at any roll; without them it compares the image column u.
     """
@@ -213,12 +214,12 @@ def order_blobs(blobs, order, camera_matrix=None, down=None):
             first = b if first is a else a
     else:
         key_a, key_b = a.u, b.u
-        if camera_matrix is not None and down is not None:
+        if camera is not None and down is not None:
             right = np.cross(np.asarray(down, dtype=float), [0.0, 0.0, 1.0])
             if np.linalg.norm(right) > 1e-6 and np.all(np.isfinite(right)):
-                k_inv = np.linalg.inv(np.asarray(camera_matrix, dtype=float).reshape(3, 3))
-                key_a = float(right @ (k_inv @ [a.u, a.v, 1.0]))
-                key_b = float(right @ (k_inv @ [b.u, b.v, 1.0]))
+                x, y = camera.normalized_from_pixels(np.array([a.u, b.u]),
+                                                     np.array([a.v, b.v]))
+                key_a, key_b = (float(k) for k in right[0] * x + right[1] * y)
         first = a if key_a <= key_b else b
         if order == 'right_to_left':
             first = b if first is a else a
@@ -226,83 +227,28 @@ def order_blobs(blobs, order, camera_matrix=None, down=None):
     return [first, second]
 
 
-def undistort_pixels(uv, camera_matrix, dist_coeffs=None, distortion_model='plumb_bob'):
+def undistort_pixels(uv: np.ndarray, camera: CameraModel) -> Tuple[np.ndarray, np.ndarray]:
     """
-    Return ``(rays, uv_undistorted)`` of raw pixels ``uv`` ``(N, 2)``.
+    Return ``(rays, uv_undistorted)`` of raw pixels ``uv`` ``(N, 2)`` of ``camera``.
 
-    ``rays`` ``(N, 3)`` are normalised ``[x, y, 1]``; ``uv_undistorted`` ``(N, 2)`` the
-    same points re-projected with ``K`` (ideal pinhole pixels). ``dist_coeffs`` empty or
-    all zero: no distortion. ``equidistant`` uses ``cv2.fisheye.undistortPoints`` (4
-    coefficients); the others ``cv2.undistortPoints`` (4, 5, 8, 12 or 14). OpenCV's
-    fixed-point iteration stops early for strong distortion (1e-5 off near the image
-    corners), so a few Gauss-Newton steps on the forward model (``cv2.projectPoints``)
-    follow, to 1e-12.
+    ``rays`` ``(N, 3)`` are normalised ``[x, y, 1]`` (optical frame);
+    ``uv_undistorted`` ``(N, 2)`` the same points re-projected with ``K`` alone (ideal
+    pinhole pixels).
     """
-    import cv2
-
-    k = np.asarray(camera_matrix, dtype=float).reshape(3, 3)
-    pts = np.asarray(uv, dtype=float).reshape(-1, 1, 2)
-    d = np.zeros(0) if dist_coeffs is None else np.asarray(dist_coeffs, dtype=float).ravel()
-    if not np.all(np.isfinite(d)):
-        raise InputError('distortion coefficients D contain NaN or infinity')
-    if distortion_model not in DISTORTION_MODELS:
-        raise InputError(f'distortion model {distortion_model!r} is not supported; use one '
-                         f'of plumb_bob, rational_polynomial, equidistant')
-    if d.size == 0 or not np.any(d):
-        normalised = (pts.reshape(-1, 2) - k[:2, 2]) @ np.diag(1.0 / np.diag(k)[:2])
-        if k[0, 1] != 0.0:
-            normalised[:, 0] -= k[0, 1] / k[0, 0] * normalised[:, 1]
-    elif distortion_model == 'equidistant':
-        if d.size != 4:
-            raise InputError(f'equidistant distortion needs 4 coefficients, got {d.size}')
-        normalised = cv2.fisheye.undistortPoints(pts, k, d).reshape(-1, 2)
-        normalised = _refine(normalised, pts.reshape(-1, 2), k, d, fisheye=True)
-    else:
-        if d.size not in (4, 5, 8, 12, 14):
-            raise InputError(f'D: expected 4, 5, 8, 12 or 14 coefficients, got {d.size}')
-        normalised = cv2.undistortPoints(pts, k, d).reshape(-1, 2)
-        normalised = _refine(normalised, pts.reshape(-1, 2), k, d, fisheye=False)
-    rays = np.concatenate([normalised, np.ones((len(normalised), 1))], axis=1)
-    uv_undistorted = (rays @ k.T)[:, :2]
-    return rays, uv_undistorted
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    x, y = camera.normalized_from_pixels(uv[:, 0], uv[:, 1], iterations=20)
+    rays = np.stack([x, y, np.ones_like(x)], axis=1)
+    return rays, (rays @ camera.K.T)[:, :2]
 
 
-def _distort(normalised, k, d, fisheye):
-    """Return the distorted pixels of normalised points ``(N, 2)`` (OpenCV's forward model)."""
-    import cv2
-
-    pts = np.concatenate([normalised, np.ones((len(normalised), 1))], axis=1)
-    if fisheye:
-        uv = cv2.fisheye.distortPoints(np.ascontiguousarray(normalised[:, None, :]), k, d)
-    else:
-        uv, _ = cv2.projectPoints(pts[:, None, :], np.zeros(3), np.zeros(3), k, d)
-    return uv.reshape(-1, 2)
-
-
-def _refine(normalised, uv, k, d, fisheye, steps=6, step_size=1e-7):
-    """Gauss-Newton refinement of undistorted points so that they re-distort onto ``uv``."""
-    x = np.array(normalised, dtype=float)
-    for _ in range(steps):
-        residual = _distort(x, k, d, fisheye) - uv
-        if not np.all(np.isfinite(residual)) or np.abs(residual).max() < 1e-10:
-            break
-        jac_x = (_distort(x + [step_size, 0.0], k, d, fisheye) - uv - residual) / step_size
-        jac_y = (_distort(x + [0.0, step_size], k, d, fisheye) - uv - residual) / step_size
-        jac = np.stack([jac_x, jac_y], axis=2)                       # (N, 2, 2)
-        det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-        if np.any(np.abs(det) < 1e-12):
-            break
-        x -= np.linalg.solve(jac, residual[:, :, None])[:, :, 0]
-    return x
-
-
-def detect_beacons(image, settings=None, camera_matrix=None, dist_coeffs=None,
-                   distortion_model='plumb_bob', down=None):
+def detect_beacons(image: np.ndarray, settings: Optional[DetectorSettings] = None,
+                   camera: Optional[CameraModel] = None,
+                   down: Optional[np.ndarray] = None) -> BeaconDetection:
     """
     Detect the two emitters in ``image`` (uint8, grey or BGR); return a :class:`BeaconDetection`.
 
-    With ``camera_matrix`` (3x3 or 9 values) the result also has undistorted pixels and
-    rays; ``down`` (camera frame) makes ``left_to_right`` ordering gravity-aware.
+    With ``camera`` the result also has undistorted pixels and rays; ``down`` (camera
+    optical frame) makes ``left_to_right`` ordering gravity-aware.
     """
     settings = settings or DetectorSettings()
     grey = to_grey(image)
@@ -335,14 +281,10 @@ def detect_beacons(image, settings=None, camera_matrix=None, dist_coeffs=None,
                             f'reflections or other lights; raise the threshold or min_peak, '
                             f'or tighten the area limits')
         return detection
-    k = None
-    if camera_matrix is not None:
-        k = np.asarray(camera_matrix, dtype=float).reshape(3, 3)
-    ordered = order_blobs(blobs, settings.order, k, down)
+    ordered = order_blobs(blobs, settings.order, camera, down)
     detection.blobs = ordered
     detection.uv = np.array([[b.u, b.v] for b in ordered])
-    if k is not None:
-        detection.rays, detection.uv_undistorted = undistort_pixels(
-            detection.uv, k, dist_coeffs, distortion_model)
+    if camera is not None:
+        detection.rays, detection.uv_undistorted = undistort_pixels(detection.uv, camera)
     detection.ok = True
     return detection

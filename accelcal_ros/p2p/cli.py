@@ -139,6 +139,7 @@ def solve_line(line):
     """Return ``(output_dict, malformed)`` for one input line (never raises AccelcalError)."""
     import json
 
+    from accelcal_ros.camera import CameraModel
     from accelcal_ros.errors import AccelcalError, InputError
     from accelcal_ros.p2p.beacons import undistort_pixels
     from accelcal_ros.p2p.solver import solve_pixels
@@ -154,7 +155,7 @@ def solve_line(line):
     try:
         uv, k, points, down, dist = parse_problem(line)
         if dist is not None and dist.size and dist.any():
-            _, uv = undistort_pixels(uv, k, dist)
+            _, uv = undistort_pixels(uv, CameraModel(0, 0, k, dist))
         solutions = solve_pixels(uv, k, points, down)
         out['solutions'] = [s.to_dict() for s in solutions]
         return out, False

@@ -11,10 +11,12 @@ solutions are resolved by continuity with the last pose when that is recent enou
 otherwise reported.
 """
 from dataclasses import dataclass, field
+from typing import Optional, Sequence
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.frames import rotation_matrix_from_list
-from accelcal_ros.p2p.beacons import detect_beacons, DetectorSettings, DISTORTION_MODELS
+from accelcal_ros.p2p.beacons import detect_beacons, DetectorSettings
 from accelcal_ros.p2p.solver import down_from_roll_pitch, solve
 from accelcal_ros.rosutil.stamp_sync import StampMatcher
 import numpy as np
@@ -45,38 +47,6 @@ class FrameResult:
     tag: object = None
 
 
-@dataclass
-class CameraCalibration:
-    """``K`` 3x3, distortion ``D``, its model name and the image size (0: unknown)."""
-
-    camera_matrix: np.ndarray
-    dist_coeffs: np.ndarray
-    distortion_model: str
-    width: int
-    height: int
-
-
-def camera_calibration(k, d, distortion_model, width, height):
-    """Return a :class:`CameraCalibration` or raise InputError with the reason."""
-    from accelcal_ros.errors import InputError
-
-    k = np.asarray(k, dtype=float).reshape(-1)
-    if k.size != 9 or not np.all(np.isfinite(k)):
-        raise InputError('camera_info K must be 9 finite values')
-    k = k.reshape(3, 3)
-    if k[0, 0] <= 0.0 or k[1, 1] <= 0.0 or k[2, 2] == 0.0:
-        raise InputError('camera_info K has no focal length (all zero?): the camera is not '
-                         'calibrated; publish a calibrated camera_info')
-    d = np.asarray(d, dtype=float).reshape(-1)
-    if not np.all(np.isfinite(d)):
-        raise InputError('camera_info D contains NaN or infinity')
-    model = distortion_model or ('plumb_bob' if d.size else '')
-    if d.size and np.any(d) and model not in DISTORTION_MODELS:
-        raise InputError(f'camera_info distortion_model {model!r} is not supported; use '
-                         'plumb_bob, rational_polynomial or equidistant')
-    return CameraCalibration(k / k[2, 2], d, model, int(width), int(height))
-
-
 class P2PPipeline:
     """Stateful P2P positioning from images, camera info and attitude (see the module text)."""
 
@@ -104,10 +74,11 @@ class P2PPipeline:
             raise InputError('emitters contain NaN or infinity')
         self.values, self.settings, self.mount, self.points = merged, settings, mount, points
 
-    def set_camera_info(self, k, d, distortion_model, width, height):
+    def set_camera_info(self, k: Sequence[float], d: Sequence[float], distortion_model: str,
+                        width: int, height: int) -> Optional[str]:
         """Store the camera calibration; returns None or the reason it was rejected."""
         try:
-            self.camera = camera_calibration(k, d, distortion_model, width, height)
+            self.camera = CameraModel.from_camera_info(k, d, distortion_model, width, height)
             self.camera_reason = ''
         except AccelcalError as exc:
             self.camera = None
@@ -178,8 +149,7 @@ class P2PPipeline:
             return result
         down = down_from_roll_pitch(attitude[0], attitude[1], self.mount)
         try:
-            detection = detect_beacons(grey, self.settings, cam.camera_matrix,
-                                       cam.dist_coeffs, cam.distortion_model, down)
+            detection = detect_beacons(grey, self.settings, cam, down)
         except AccelcalError as exc:
             result.reason = f'detection failed: {exc}'
             return result

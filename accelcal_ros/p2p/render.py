@@ -1,40 +1,27 @@
 """
 Rendered ground truth: images of the two emitters at known poses (pure core).
 
-The emitters are projected with OpenCV's camera model (``cv2.projectPoints`` with
-``K`` and ``D``; object to camera ``X_cam = R X_obj + t``) and drawn as Gaussian spots
+The emitters are projected with the camera model (:class:`accelcal_ros.camera.CameraModel`,
+OpenCV's; object to camera ``X_cam = R X_obj + t``) and drawn as Gaussian spots
 (``sigma_px``, ``peak`` grey level, saturating at 255) on a dark background, then
 optionally blurred (Gaussian, ``blur_sigma_px``, e.g. defocus) and given additive
 Gaussian noise (``noise_std``), quantised to 8 bits. Pixel centres are at integer
 coordinates (OpenCV). Deterministic for a given ``seed``.
 """
-from dataclasses import dataclass
+from typing import Sequence, Tuple
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
 import numpy as np
 
-
-@dataclass(frozen=True)
-class CameraModel:
-    """Pinhole camera: ``K`` 3x3, distortion ``D`` (OpenCV order), size ``width x height``."""
-
-    camera_matrix: np.ndarray
-    dist_coeffs: np.ndarray
-    width: int
-    height: int
-
-    @classmethod
-    def from_fov(cls, width=1280, height=960, fov_h_deg=60.0, dist_coeffs=None):
-        """Return a camera with square pixels, centred principal point and ``fov_h_deg``."""
-        f = 0.5 * width / np.tan(np.radians(fov_h_deg) / 2.0)
-        k = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0],
-                      [0.0, 0.0, 1.0]])
-        d = np.zeros(5) if dist_coeffs is None else np.asarray(dist_coeffs, dtype=float)
-        return cls(k, d, int(width), int(height))
+__all__ = ['CameraModel', 'draw_spots', 'pose_from_camera_attitude', 'project',
+           'render_emitters']
 
 
-def pose_from_camera_attitude(roll, pitch, yaw, position, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def pose_from_camera_attitude(roll: float, pitch: float, yaw: float, position: Sequence[float],
+                              imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA
+                              ) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return ``(R, t)`` (object to camera) of a camera body at REP-103 roll/pitch/yaw (rad).
 
@@ -48,18 +35,17 @@ def pose_from_camera_attitude(roll, pitch, yaw, position, imu_to_camera=DEFAULT_
     return r, -r @ np.asarray(position, dtype=float)
 
 
-def project(points, rotation, translation, camera):
-    """Return the distorted pixel coordinates ``(N, 2)`` and depths ``(N,)`` of ``points``."""
-    import cv2
+def project(points: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
+            camera: CameraModel) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return the distorted pixels ``(N, 2)`` and depths ``(N,)`` (m) of object points ``(N, 3)``.
 
+    Points behind the camera (depth <= 0) have NaN pixels.
+    """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
-    rotation = np.asarray(rotation, dtype=float)
-    translation = np.asarray(translation, dtype=float).reshape(3)
-    depth = (points @ rotation.T + translation)[:, 2]
-    rvec, _ = cv2.Rodrigues(rotation)
-    uv, _ = cv2.projectPoints(points.reshape(-1, 1, 3), rvec, translation.reshape(3, 1),
-                              camera.camera_matrix, camera.dist_coeffs)
-    return uv.reshape(-1, 2), depth
+    in_camera = points @ np.asarray(rotation, dtype=float).T + np.asarray(
+        translation, dtype=float).reshape(3)
+    return camera.project(in_camera), in_camera[:, 2]
 
 
 def draw_spots(shape, uv, sigma_px=1.5, peak=230.0, background=8.0):

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import math
 import time
 
+from accelcal_ros.camera import distort_normalized, PLUMB_BOB, undistort_normalized  # noqa: F401
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rotation_from_rpy_radians
 import numpy as np
@@ -99,56 +100,9 @@ def tilt_matrix(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
     return c @ rotation_from_rpy_radians(roll, pitch).T @ rot_z(yaw0) @ DEFAULT_IMU_TO_CAMERA.T
 
 
-def distort_normalized(x, y, distortion):
-    """
-    Apply the OpenCV distortion model to normalized coordinates ``x = X/Z``, ``y = Y/Z``.
-
-    ``distortion`` is ``[k1, k2, p1, p2, k3]`` (numbers, or arrays broadcasting with
-    ``x``: one set per point); returns the distorted ``(x, y)``.
-    """
-    k1, k2, p1, p2, k3 = distortion
-    r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xy2 = 2.0 * x * y
-    xd = x * radial + p1 * xy2 + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + p2 * xy2
-    return xd, yd
-
-
-def undistort_normalized(xd, yd, distortion, iterations=10):
-    """
-    Invert :func:`distort_normalized` by Newton's method (vectorised, float64).
-
-    Returns ``(x, y)`` with ``distort_normalized(x, y) == (xd, yd)`` to about 1e-12 for
-    the moderate distortions of real lenses within their frame.
-    """
-    k1, k2, p1, p2, k3 = (float(v) for v in distortion)
-    xd = np.asarray(xd, dtype=float)
-    yd = np.asarray(yd, dtype=float)
-    x, y = xd.copy(), yd.copy()
-    for _ in range(iterations):
-        r2 = x * x + y * y
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        d_radial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)
-        fx, fy = distort_normalized(x, y, distortion)
-        a = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
-        b = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
-        d = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
-        det = a * d - b * b
-        ex, ey = fx - xd, fy - yd
-        x = x - (d * ex - b * ey) / det
-        y = y - (a * ey - b * ex) / det
-    return x, y
-
-
 def normalized_from_pixels(camera, px, py):
     """Return normalized undistorted coordinates ``(x, y)`` of pixels of ``camera``."""
-    k = camera.K
-    yd = (np.asarray(py, dtype=float) - k[1, 2]) / k[1, 1]
-    xd = (np.asarray(px, dtype=float) - k[0, 2] - k[0, 1] * yd) / k[0, 0]
-    if not camera.has_distortion():
-        return xd, yd
-    return undistort_normalized(xd, yd, camera.D)
+    return getattr(camera, 'model', camera).normalized_from_pixels(px, py)
 
 
 def frame_border_pixels(camera, outset=0.0, per_side=64):
@@ -246,6 +200,10 @@ class LookupBuilder:
             raise InputError(f'grid_step must be an integer >= 4, got {grid_step!r}')
         if not (math.isfinite(tolerance_px) and tolerance_px > 0):
             raise InputError(f'tolerance_px must be positive, got {tolerance_px!r}')
+        for cam in rig.cameras:
+            if cam.distortion_model != PLUMB_BOB:
+                raise InputError(f'camera {cam.name!r}: the panorama supports the plumb_bob '
+                                 f'lens model only, not {cam.distortion_model}')
         self.rig = rig
         self.geometry = geometry
         self.imu_to_camera = np.asarray(imu_to_camera, dtype=float).reshape(3, 3)

@@ -1,4 +1,5 @@
 """Beacon detection and rendered ground truth: render -> detect -> undistort -> solve."""
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.p2p import beacons, render, solver
 import numpy as np
@@ -30,7 +31,7 @@ def test_rendered_ground_truth_pose(dist):
     assert np.all(depth > 0) and image.dtype == np.uint8 and image.shape == (960, 1280)
     down = rotation @ [0, 0, -1.0]
     detection = beacons.detect_beacons(image, beacons.DetectorSettings(threshold=60),
-                                       camera.camera_matrix, camera.dist_coeffs, down=down)
+                                       camera, down=down)
     assert detection.ok, detection.reason
     assert np.abs(detection.uv - uv_true).max() < 0.05     # sub-pixel centroids
     true_rays = EMITTERS @ rotation.T + translation
@@ -130,9 +131,9 @@ def test_left_to_right_follows_the_horizon_when_rolled():
     image, uv, _ = render.render_emitters(points, rotation, translation, camera, noise_std=0)
     assert uv[0, 0] > uv[1, 0]            # upside down-ish: M1 is right in the image
     down = rotation @ [0, 0, -1.0]
-    found = beacons.detect_beacons(image, camera_matrix=camera.camera_matrix, down=down)
+    found = beacons.detect_beacons(image, camera=camera, down=down)
     assert np.allclose(found.uv, uv, atol=0.05)
-    naive = beacons.detect_beacons(image, camera_matrix=camera.camera_matrix)
+    naive = beacons.detect_beacons(image, camera=camera)
     assert np.allclose(naive.uv, uv[::-1], atol=0.05)
 
 
@@ -145,19 +146,20 @@ def test_undistortion_models():
               [-0.3, 0.1, 0.001, 0.002, -0.02, 0.01, 0.0, 0.0]):
         d = np.array(d)
         uv, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, d)
-        got, ideal = beacons.undistort_pixels(uv.reshape(-1, 2), k, d)
+        got, ideal = beacons.undistort_pixels(uv.reshape(-1, 2), CameraModel(0, 0, k, d))
         assert np.abs(got - rays).max() < 1e-7
         assert np.allclose(ideal, (rays @ k.T)[:, :2], atol=1e-4)
     fisheye = np.array([0.05, -0.01, 0.002, 0.0])
     uv = cv2.fisheye.distortPoints(rays[:, None, :2].copy(), k, fisheye)
-    got, _ = beacons.undistort_pixels(uv.reshape(-1, 2), k, fisheye, 'equidistant')
-    assert np.abs(got - rays).max() < 1e-5
-    got, _ = beacons.undistort_pixels((rays @ k.T)[:, :2], k, np.zeros(5))
+    got, _ = beacons.undistort_pixels(uv.reshape(-1, 2),
+                                      CameraModel(0, 0, k, fisheye, 'equidistant'))
+    assert np.abs(got - rays).max() < 1e-9
+    got, _ = beacons.undistort_pixels((rays @ k.T)[:, :2], CameraModel(0, 0, k, np.zeros(5)))
     assert np.abs(got - rays).max() < 1e-12
     with pytest.raises(InputError, match='not supported'):
-        beacons.undistort_pixels(uv.reshape(-1, 2), k, fisheye, 'weird')
+        CameraModel(0, 0, k, fisheye, 'weird')
     with pytest.raises(InputError, match='coefficients'):
-        beacons.undistort_pixels(uv.reshape(-1, 2), k, np.ones(3))
+        CameraModel(0, 0, k, np.ones(3))
 
 
 def test_colour_and_bad_images():
