@@ -236,9 +236,10 @@ class BagWriter:
         vec = types['geometry_msgs/msg/Vector3']
         twist = types['geometry_msgs/msg/Twist'](linear=vec(x=0.0, y=0.0, z=0.0),
                                                  angular=vec(x=0.0, y=0.0, z=0.0))
+        with_cov = types['geometry_msgs/msg/PoseWithCovariance'](
+            pose=pose, covariance=np.zeros(36))
+        twist_cov = types['geometry_msgs/msg/TwistWithCovariance'](
+            twist=twist, covariance=np.zeros(36))
         return types['nav_msgs/msg/Odometry'](
             header=self.header(t_ns, frame_id, topic), child_frame_id=child_frame_id,
-            pose=types['geometry_msgs/msg/PoseWithCovariance'](pose=pose,
-                                                              covariance=np.zeros(36)),
-            twist=types['geometry_msgs/msg/TwistWithCovariance'](twist=twist,
-                                                                covariance=np.zeros(36)))
+            pose=with_cov, twist=twist_cov)
