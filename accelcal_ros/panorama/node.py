@@ -1,56 +1,68 @@
 """
 ``stitcher``: levelled video panorama from a camera rig and the attitude (thin ROS wiring).
 
-Subscribes (``image_reliability``: best_effort -- sensor-data QoS, which matches every
-publisher -- or reliable, lossless for large images from reliable publishers):
+Subscribes:
 
-* each of ``camera_topics`` (sensor_msgs/Image; rgb8, bgr8 or mono8; other encodings and
-  images whose size differs from the rig file are rejected with a log line, once);
+* each of ``camera_topics`` (sensor_msgs/Image in any encoding of
+  :mod:`accelcal_ros.rosutil.images`: bgr8, rgb8, mono8/16, rgba8/bgra8, Bayer, YUV 4:2:2;
+  images whose size differs from the rig file are rejected with a log line, once). QoS
+  ``image_reliability``: ``reliable`` (default) keep-last ``image_queue_depth``: every
+  frame of a reliable camera driver arrives whole, and a slow node only drops older
+  frames (keep-last: the publisher never waits for it); ``best_effort`` for best-effort
+  publishers (a reliable subscription receives nothing from them: said in the log).
+  The subscriptions are raw: the pixels are numpy views on the received buffer, copied
+  once, into the mosaic.
 * ``attitude`` (geometry_msgs/Vector3Stamped: x = roll, y = pitch, rad, REP-103), as
   published by the ``attitude`` node; NaN or infinite values are rejected.
 
-Publishes ``panorama`` (sensor_msgs/Image, reliable, depth 2) stamped with the newest
-camera frame used, and ``/diagnostics`` (one status per camera, one for the panorama).
+Publishes ``panorama`` (sensor_msgs/Image, reliable, depth 2; serialized directly from
+the render buffer, skipped while nobody subscribes) stamped with the newest camera frame
+used, ``panorama/compressed`` (sensor_msgs/CompressedImage, JPEG, only with
+``compressed_output``) and ``/diagnostics`` (one status per camera, one for the
+panorama, with the time jumps seen).
 
-Frames of the cameras are matched by stamp within ``sync_tolerance_s``
-(:class:`~accelcal_ros.rosutil.stamp_sync.StampMatcher`); a camera silent for more than
-``stale_timeout_s`` is stalled: the others go on and its sector stays black. Before the
-first attitude arrives nothing is published (said once). Matching, image copies and
-lookup rebuilds run in a worker thread, so subscriptions never wait for them; with
-``pipeline`` (default) each frame is remapped and published from a render thread while
-the next frame set's lookup is rebuilt. Core: :class:`~.pipeline.PipelinedStitcher`.
+Which frames form a set (stamps within ``sync_tolerance_s``, stalled cameras, waiting
+for the attitude, time jumps) is :class:`~.frame_sets.FrameSetPolicy`; its one thread
+(:class:`~.frame_sets.FrameSetWorker`) hands each set to
+:class:`~.pipeline.PipelinedStitcher`, whose render thread remaps and publishes while
+the next set's lookup is rebuilt. ``imu_to_camera`` comes from the rig file when it has
+one; the parameter, when given, overrides it.
 """
-import math
-import threading
 import time
 
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list
+from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import load_rig
-from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
+from accelcal_ros.rosutil.images import image_array, image_cdr, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
-from accelcal_ros.rosutil.stamp_sync import StampMatcher
-from accelcal_ros.rosutil.stamps import seconds_to_stamp, stamp_to_seconds
-from builtin_interfaces.msg import Time
+from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image
+from rclpy.qos import (HistoryPolicy, qos_profile_sensor_data, QoSProfile,
+                       ReliabilityPolicy)
+from sensor_msgs.msg import CompressedImage, Image
+
+# Inputs that go into the mosaic as they are (the stitcher converts grey <-> BGR while
+# copying); any other encoding is converted to the output encoding first.
+_AS_IS = {'bgr8': ('bgr8', 'mono8'), 'mono8': ('mono8', 'bgr8'), 'rgb8': ('rgb8', 'mono8')}
 
 
 class StitcherNode(Node):
-    """Thin node around :class:`~accelcal_ros.panorama.pipeline.PipelinedStitcher`."""
+    """Thin node around :class:`~.frame_sets.FrameSetPolicy` and the stitcher."""
 
     def __init__(self):
         super().__init__('stitcher')
         import cv2
 
+        self._cv2 = cv2
         self.params = ParameterSet(self, STITCHER_PARAMS)
         v = self.params.values
         if v['threads']:
@@ -67,216 +79,126 @@ class StitcherNode(Node):
         geometry = PanoramaGeometry(v['width'], v['height'], v['fov_h_deg'], v['fov_v_deg'],
                                     v['projection'])
         self.encoding = v['output_encoding']
+        mount, source = self._imu_to_camera(v)
         self.stitcher = PipelinedStitcher(
-            self.rig, geometry, rotation_matrix_from_list(v['imu_to_camera'], 'imu_to_camera'),
-            stages=2 if v['pipeline'] else 1, grid_step=v['grid_step'],
-            rebuild_threshold_deg=v['rebuild_threshold_deg'],
+            self.rig, geometry, mount, stages=2 if v['pipeline'] else 1,
+            grid_step=v['grid_step'], rebuild_threshold_deg=v['rebuild_threshold_deg'],
             blend_width_deg=v['blend_width_deg'],
             channels=1 if self.encoding == 'mono8' else 3)
-        n = len(self.rig)
-        self.frames = StampMatcher(list(range(n)), depth=4)
-        self.attitudes = StampMatcher(['attitude'], depth=500)
-        self._last_receive = [None] * n
-        self._rejected = [0] * n
-        self._received = [0] * n
-        self._reject_reason = [''] * n
-        self._stall_warned = [False] * n
-        self._warned = set()
-        self._wake = threading.Event()
-        self._stop = False
-        self._lock = threading.Lock()
-        self._last_published = -math.inf
-        self._last_tried = -math.inf
-        self._unmatched_since = None
-        self._waiting = None
-        self._retry = False
+        self._sizes = [(c.width, c.height) for c in self.rig.cameras]
+        self.policy = FrameSetPolicy(
+            [f'{c.name} ({t})' for c, t in zip(self.rig.cameras, topics)], self.params,
+            log=self._log)
         self._published = 0
         self._publish_times = []
         self._latency_s = float('nan')
         self._process_s = float('nan')
-        self._status = 'waiting for camera frames'
+        self._error = ''
+        self._warned = set()
         group = ReentrantCallbackGroup()
-        qos = qos_profile_sensor_data if v['image_reliability'] == 'best_effort' else \
-            QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+        reliable = v['image_reliability'] == 'reliable'
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=v['image_queue_depth'],
+                         reliability=ReliabilityPolicy.RELIABLE if reliable
+                         else ReliabilityPolicy.BEST_EFFORT)
         for i, topic in enumerate(topics):
-            self.create_subscription(Image, topic, lambda msg, i=i: self._on_image(i, msg),
-                                     qos, callback_group=group)
+            events = SubscriptionEventCallbacks(
+                incompatible_qos=lambda event, i=i: self._incompatible(i, event))
+            self.create_subscription(Image, topic, lambda data, i=i: self._on_image(i, data),
+                                     qos, callback_group=group, raw=True,
+                                     event_callbacks=events)
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude,
                                  qos_profile_sensor_data, callback_group=group)
         self.publisher = self.create_publisher(Image, 'panorama', 2)
+        self.compressed = self.create_publisher(CompressedImage, 'panorama/compressed', 2) \
+            if v['compressed_output'] else None
         self.diagnostics = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_timer(1.0, self._publish_diagnostics)
-        self._worker = threading.Thread(target=self._work, name='stitcher', daemon=True)
-        self._worker.start()
+        self.worker = FrameSetWorker(self.policy, self._stitch, self._on_error)
         inputs = ', '.join(f'{c.name} <- {t}' for c, t in zip(self.rig.cameras, topics))
         self.get_logger().info(
-            f'stitching {n} cameras ({inputs}) into a {geometry.width}x{geometry.height} '
-            f'{geometry.projection} panorama of {geometry.fov_h_deg:g} x '
-            f'{geometry.fov_v_deg:g} deg on "panorama"')
+            f'stitching {len(self.rig)} cameras ({inputs}) into a {geometry.width}x'
+            f'{geometry.height} {geometry.projection} panorama of {geometry.fov_h_deg:g} x '
+            f'{geometry.fov_v_deg:g} deg on "panorama" (images {v["image_reliability"]}, '
+            f'depth {v["image_queue_depth"]}; imu_to_camera from {source})')
+
+    def _imu_to_camera(self, values):
+        """Return ``(rotation, where it came from)``: the parameter if given, else the rig's."""
+        given = 'imu_to_camera' in (getattr(self, '_parameter_overrides', None) or {})
+        from_rig = getattr(self.rig, 'imu_to_camera', None)
+        if from_rig is not None and not given:
+            return from_rig, 'the rig file'
+        mount = rotation_matrix_from_list(values['imu_to_camera'], 'imu_to_camera')
+        return mount, 'the parameter' if given else 'the default (camera looking along +x)'
 
     # -- helpers --------------------------------------------------------------------------
+    def _log(self, level, text):
+        logger = self.get_logger()
+        (logger.warning if level == 'warning' else logger.info)(text)
+
     def _warn_once(self, key, text):
         if key not in self._warned:
             self._warned.add(key)
             self.get_logger().warning(text)
 
+    def _incompatible(self, index, event):
+        self._warn_once(('qos', index), f'camera topic {self.topics[index]}: a publisher '
+                        'with incompatible QoS (best effort?) is ignored; set '
+                        'image_reliability:=best_effort for best-effort camera drivers')
+
     def close(self):
-        """Stop the worker thread (called by the runner at shutdown)."""
-        self._stop = True
-        self._wake.set()
-        self._worker.join(timeout=2.0)
+        """Stop the frame-set thread and the render thread (the runner calls this)."""
+        self.worker.close()
         self.stitcher.close()
 
     # -- inputs ---------------------------------------------------------------------------
-    def _on_image(self, index, msg):
-        cam = self.rig.cameras[index]
+    def _on_image(self, index, data):
+        """Raw (serialized) image: parse the header, keep a view on the pixels."""
+        topic = self.topics[index]
         try:
-            image = image_msg_to_array(msg, want=self.encoding)
-            if (msg.width, msg.height) != (cam.width, cam.height):
-                raise InputError(f'image is {msg.width}x{msg.height}, the rig file says '
-                                 f'{cam.width}x{cam.height}')
+            raw = parse_image_cdr(data)
+            enc = raw.encoding.lower()
+            want = None if self.encoding in _AS_IS.get(enc, ()) else self.encoding
+            image = image_array(raw.height, raw.width, raw.encoding, raw.is_bigendian,
+                                raw.step, raw.data, raw.offset, want=want, topic=topic,
+                                expected_size=self._sizes[index])
         except InputError as exc:
-            self._rejected[index] += 1
-            self._reject_reason[index] = str(exc)
-            self._warn_once(('image', index, str(exc)),
-                            f'camera {cam.name} ({self.topics[index]}): frame rejected: {exc} '
-                            '(reported once)')
+            self.policy.reject_frame(index, str(exc))
             return
-        self.frames.add(index, stamp_to_seconds(msg.header.stamp), image)
-        self._received[index] += 1
-        self._last_receive[index] = time.monotonic()
-        self._wake.set()
+        self.policy.add_frame(index, raw.stamp_s, image, time.monotonic())
+        self.worker.wake()
 
     def _on_attitude(self, msg):
-        roll, pitch = msg.vector.x, msg.vector.y
-        if not (math.isfinite(roll) and math.isfinite(pitch)):
-            self._warn_once('nan_attitude', f'attitude rejected: roll={roll}, pitch={pitch} '
-                            'is not finite; the last good attitude stays in use (reported '
-                            'once)')
-            return
-        self.attitudes.add('attitude', stamp_to_seconds(msg.header.stamp), (roll, pitch))
-        self._wake.set()
+        if self.policy.add_attitude(stamp_to_seconds(msg.header.stamp), msg.vector.x,
+                                    msg.vector.y, time.monotonic()):
+            self.worker.wake()
 
-    # -- stitching ------------------------------------------------------------------------
-    def _work(self):
-        while not self._stop:
-            self._wake.wait(timeout=0.005 if self._retry else 0.1)
-            self._wake.clear()
-            self._retry = False
-            if self._stop:
-                break
-            try:
-                self._try_stitch()
-            except AccelcalError as exc:
-                self._warn_once(('error', str(exc)), f'cannot stitch: {exc}')
-            except Exception as exc:  # keep the node alive; say what happened
-                self._warn_once(('crash', type(exc).__name__),
-                                f'stitching failed: {type(exc).__name__}: {exc}')
+    # -- stitching (frame-set thread) -----------------------------------------------------
+    def _on_error(self, exc):
+        self._error = f'{type(exc).__name__}: {exc}'
+        if isinstance(exc, AccelcalError):
+            self._warn_once(('error', str(exc)), f'cannot stitch: {exc}')
+        else:
+            self._warn_once(('crash', type(exc).__name__), f'stitching failed: {self._error}')
 
-    def _live_cameras(self, now):
-        timeout = self.params['stale_timeout_s']
-        live = []
-        for i, last in enumerate(self._last_receive):
-            cam = self.rig.cameras[i]
-            if last is not None and now - last <= timeout:
-                live.append(i)
-                if self._stall_warned[i]:
-                    self._stall_warned[i] = False
-                    self.get_logger().info(f'camera {cam.name} ({self.topics[i]}) is back')
-            elif last is not None and not self._stall_warned[i]:
-                self._stall_warned[i] = True
-                self.get_logger().warning(
-                    f'camera {cam.name} ({self.topics[i]}) stalled: no frame for '
-                    f'{now - last:.1f} s; its sector stays black, the others go on')
-        return live
-
-    def _report_unmatched(self, candidates, live, tolerance, now):
-        """Say once when the live cameras' stamps never come within the tolerance."""
-        if not candidates or candidates[0] <= self._last_published:
-            return
-        if self._unmatched_since is None:
-            self._unmatched_since = now
-            return
-        if now - self._unmatched_since < 2.0:
-            return
-        newest = candidates[0]
-        offsets = []
-        for i in live:
-            near = self.frames.nearest(newest, math.inf, keys=[i])[i]
-            if near is not None and abs(near[0] - newest) > tolerance:
-                offsets.append(f'{self.rig.cameras[i].name} {1e3 * (near[0] - newest):+.0f} ms')
-        self._status = 'no complete set of frames within sync_tolerance_s'
-        self._warn_once('unmatched', 'no set of frames with stamps within sync_tolerance_s = '
-                        f'{tolerance} s for 2 s (offsets from the newest frame: '
-                        f'{", ".join(offsets) or "none"}); trigger the cameras together or '
-                        'raise sync_tolerance_s (reported once)')
-
-    def _try_stitch(self):
-        now = time.monotonic()
-        live = self._live_cameras(now)
-        if not live:
-            return
-        tolerance = self.params['sync_tolerance_s']
-        candidates = sorted({self.frames.latest_stamp(i) for i in live} - {None},
-                            reverse=True)
-        chosen = None
-        for stamp in candidates:
-            if stamp <= self._last_published or stamp <= self._last_tried:
-                break
-            match = self.frames.nearest(stamp, tolerance, keys=live)
-            if all(match[i] is not None for i in live):
-                chosen = (stamp, match)
-                break
-        if chosen is None:
-            self._report_unmatched(candidates, live, tolerance, now)
-            return
-        self._unmatched_since = None
-        stamp, match = chosen
-        newest = max(m[0] for m in match.values())
-        if self.attitudes.latest_stamp() is None:
-            self._status = 'no attitude yet'
-            self._warn_once('no_attitude', 'no attitude received yet on "attitude" '
-                            '(geometry_msgs/Vector3Stamped, x roll, y pitch, rad): '
-                            'publishing nothing until one arrives')
-            self._last_tried = newest
-            return
-        # The attitude of the frames' instant may still be on its way (topics are not
-        # ordered): wait up to attitude_wait_s for one stamped at or after the frames.
-        if self.attitudes.latest_stamp() < newest - 1e-6:
-            if self._waiting is None or self._waiting[0] != newest:
-                self._waiting = (newest, now)
-            if now - self._waiting[1] < self.params['attitude_wait_s']:
-                self._retry = True
-                return
-        self._waiting = None
-        attitude = self.attitudes.nearest(newest, self.params['attitude_tolerance_s'])
-        if attitude['attitude'] is None:
-            self._status = 'no attitude near the frame stamps'
-            self._warn_once('attitude_gap', f'no attitude within '
-                            f'{self.params["attitude_tolerance_s"]} s of the frame stamp '
-                            f'{newest:.3f}: frames skipped (check clocks / the attitude '
-                            'node; reported once)')
-            self._last_tried = newest
-            return
+    def _stitch(self, frame_set):
         start = time.perf_counter()
-        roll, pitch = attitude['attitude'][1]
         self.stitcher.rebuild_threshold_deg = self.params['rebuild_threshold_deg']
-        images = [match[i][1] if match.get(i) is not None else None
-                  for i in range(len(self.rig))]
-        # the remap and the publishing run in the render thread (the next frame set's
-        # lookup is rebuilt meanwhile); bad input raises here, before anything is queued
-        self.stitcher.submit(roll, pitch, images,
-                             lambda panorama: self._publish(panorama, newest, start))
-        self._last_published = newest
+        # remap and publishing run in the render thread (the next set's lookup is
+        # rebuilt meanwhile); bad input raises here, before anything is queued
+        self.stitcher.submit(frame_set.roll_rad, frame_set.pitch_rad, frame_set.images,
+                             lambda panorama: self._publish(panorama, frame_set.stamp_s,
+                                                            start))
 
-    def _publish(self, panorama, stamp, start):
+    def _publish(self, panorama, stamp_s, start):
         """Publish one panorama (render thread); errors are logged, not raised."""
+        total_ns = int(round(stamp_s * 1e9))
+        sec, nanosec = divmod(total_ns, 1_000_000_000)
         try:
-            header = Image().header
-            header.stamp = seconds_to_stamp(stamp, Time)
-            header.frame_id = self.params['frame_id']
-            msg = array_to_image_msg(panorama, self.encoding, Image, header)
-            self.publisher.publish(msg)
+            if self.publisher.get_subscription_count():
+                self.publisher.publish(image_cdr(panorama, self.encoding, sec, nanosec,
+                                                 self.params['frame_id']))
+            if self.compressed is not None:
+                self._publish_compressed(panorama, sec, nanosec)
         except Exception as exc:  # keep rendering; say what happened
             self._warn_once(('publish', type(exc).__name__),
                             f'publishing the panorama failed: {type(exc).__name__}: {exc}')
@@ -284,9 +206,26 @@ class StitcherNode(Node):
         now = time.monotonic()
         self._published += 1
         self._process_s = time.perf_counter() - start
-        self._latency_s = self.get_clock().now().nanoseconds * 1e-9 - stamp
+        self._latency_s = self.get_clock().now().nanoseconds * 1e-9 - stamp_s
         self._publish_times = [t for t in self._publish_times if t > now - 5.0] + [now]
-        self._status = 'publishing'
+        self.policy.status = 'publishing'
+
+    def _publish_compressed(self, panorama, sec, nanosec):
+        """JPEG of the panorama as image_transport's ``compressed`` sends it."""
+        cv2 = self._cv2
+        image = cv2.cvtColor(panorama, cv2.COLOR_RGB2BGR) if self.encoding == 'rgb8' \
+            else panorama
+        ok, jpeg = cv2.imencode('.jpg', image,
+                                [cv2.IMWRITE_JPEG_QUALITY, self.params['jpeg_quality']])
+        if not ok:
+            raise InputError('JPEG encoding of the panorama failed')
+        msg = CompressedImage()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+        msg.header.frame_id = self.params['frame_id']
+        target = 'mono8' if self.encoding == 'mono8' else 'bgr8'
+        msg.format = f'{self.encoding}; jpeg compressed {target}'
+        msg.data = jpeg.tobytes()
+        self.compressed.publish(msg)
 
     # -- diagnostics ----------------------------------------------------------------------
     def _publish_diagnostics(self):
@@ -296,10 +235,15 @@ class StitcherNode(Node):
         times = [t for t in self._publish_times if t > now - 5.0]
         fps = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 \
             and times[-1] > times[0] else 0.0
+        policy = self.policy
         main = DiagnosticStatus(name='stitcher: panorama', hardware_id='stitcher')
-        main.level = DiagnosticStatus.OK if self._status == 'publishing' else \
-            DiagnosticStatus.WARN
-        main.message = self._status
+        recent_jump = policy.time_jumps and not times
+        main.level = DiagnosticStatus.OK if policy.status == 'publishing' and times \
+            else DiagnosticStatus.WARN
+        main.message = policy.status if times or policy.status != 'publishing' else \
+            'no panorama for 5 s'
+        if recent_jump:
+            main.message = f'{main.message} (after a time jump: {policy.last_jump})'
         main.values = [
             KeyValue(key='published', value=str(self._published)),
             KeyValue(key='rate_hz', value=f'{fps:.2f}'),
@@ -307,30 +251,32 @@ class StitcherNode(Node):
             KeyValue(key='processing_ms', value=f'{1e3 * self._process_s:.1f}'),
             KeyValue(key='lookup_rebuilds', value=str(self.stitcher.rebuild_count)),
             KeyValue(key='last_rebuild_ms', value=f'{1e3 * self.stitcher.last_rebuild_s:.1f}'),
+            KeyValue(key='time_jumps', value=str(policy.time_jumps)),
+            KeyValue(key='last_time_jump', value=policy.last_jump or 'none'),
+            KeyValue(key='last_error', value=self._error or 'none'),
         ]
         statuses = [main]
-        timeout = self.params['stale_timeout_s']
-        for i, cam in enumerate(self.rig.cameras):
-            last = self._last_receive[i]
+        for i, state in enumerate(policy.cameras(now)):
+            cam = self.rig.cameras[i]
             status = DiagnosticStatus(name=f'stitcher: camera {cam.name}',
                                       hardware_id=self.topics[i])
-            age = None if last is None else now - last
-            if age is None:
-                status.level = DiagnosticStatus.WARN if not self._rejected[i] else \
+            if state.age_s is None:
+                status.level = DiagnosticStatus.WARN if not state.rejected else \
                     DiagnosticStatus.ERROR
                 status.message = 'no frame received yet; sector black' if not \
-                    self._rejected[i] else f'all frames rejected: {self._reject_reason[i]}'
-            elif age > timeout:
+                    state.rejected else f'all frames rejected: {state.reject_reason}'
+            elif state.stalled:
                 status.level = DiagnosticStatus.WARN
-                status.message = f'stalled: no frame for {age:.1f} s; sector black'
+                status.message = f'stalled: no frame for {state.age_s:.1f} s; sector black'
             else:
                 status.level = DiagnosticStatus.OK
                 status.message = 'ok'
             status.values = [
                 KeyValue(key='topic', value=self.topics[i]),
-                KeyValue(key='frame_age_s', value='inf' if age is None else f'{age:.2f}'),
-                KeyValue(key='received_frames', value=str(self._received[i])),
-                KeyValue(key='rejected_frames', value=str(self._rejected[i])),
+                KeyValue(key='frame_age_s',
+                         value='inf' if state.age_s is None else f'{state.age_s:.2f}'),
+                KeyValue(key='received_frames', value=str(state.received)),
+                KeyValue(key='rejected_frames', value=str(state.rejected)),
             ]
             statuses.append(status)
         array.status = statuses

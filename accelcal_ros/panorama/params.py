@@ -39,10 +39,19 @@ STITCHER_PARAMS = [
     ParamSpec('output_encoding', 'bgr8', 'encoding of the published panorama (inputs in '
               'rgb8, bgr8 or mono8 are converted)', choices=('bgr8', 'rgb8', 'mono8'),
               read_only=True),
-    ParamSpec('image_reliability', 'best_effort', 'QoS reliability of the image and '
-              'attitude subscriptions: best_effort (sensor data; matches every publisher) '
-              'or reliable (lossless for large images; needs reliable publishers)',
+    ParamSpec('image_reliability', 'reliable', 'QoS reliability of the image '
+              'subscriptions: reliable (default: every frame of a reliable camera driver '
+              'arrives whole, however large) or best_effort (for best-effort publishers, '
+              'which a reliable subscription does not receive from)',
               choices=('best_effort', 'reliable'), read_only=True),
+    ParamSpec('image_queue_depth', 2, 'keep-last depth of each image subscription: the '
+              'newest frames are kept, older ones dropped when the node falls behind (the '
+              'publisher never waits for it)', minimum=1, maximum=100, read_only=True),
+    ParamSpec('compressed_output', False, 'also publish panorama/compressed '
+              '(sensor_msgs/CompressedImage, JPEG) for viewers and recorders',
+              read_only=True),
+    ParamSpec('jpeg_quality', 80, 'JPEG quality of panorama/compressed', minimum=1,
+              maximum=100),
     ParamSpec('frame_id', 'panorama', 'frame_id of the published panorama'),
     ParamSpec('sync_tolerance_s', 0.02, 'frames of different cameras whose stamps differ by '
               'at most this are stitched together', minimum=0.0, maximum=10.0, unit='s'),

@@ -13,10 +13,12 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
-from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import Image
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CompressedImage, Image
 
 ROLL, PITCH = math.radians(2.0), math.radians(10.0)
+CAMERA_QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
+"""What camera drivers publish with (and what the node subscribes with by default)."""
 
 
 class Feeder:
@@ -25,14 +27,13 @@ class Feeder:
     def __init__(self, graph, views, topics):
         self.node = graph.node
         self.views = views
-        self.pubs = [self.node.create_publisher(Image, t, qos_profile_sensor_data)
-                     for t in topics]
+        self.pubs = [self.node.create_publisher(Image, t, CAMERA_QOS) for t in topics]
         self.att = self.node.create_publisher(Vector3Stamped, 'attitude',
                                               qos_profile_sensor_data)
         self.stamps = []
 
-    def frames(self, cameras=None, encoding='bgr8'):
-        now = time.time()
+    def frames(self, cameras=None, encoding='bgr8', offset_s=0.0):
+        now = time.time() + offset_s
         self.stamps.append(now)
         for i, pub in enumerate(self.pubs):
             if cameras is not None and i not in cameras:
@@ -48,9 +49,9 @@ class Feeder:
             pub.publish(msg)
         return now
 
-    def attitude(self, roll, pitch):
+    def attitude(self, roll, pitch, offset_s=0.0):
         msg = Vector3Stamped()
-        msg.header.stamp = seconds_to_stamp(time.time(), Time)
+        msg.header.stamp = seconds_to_stamp(time.time() + offset_s, Time)
         msg.vector.x, msg.vector.y = roll, pitch
         self.att.publish(msg)
 
@@ -164,7 +165,7 @@ def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_p
     save_rig(tmp_path / 'rig.yaml', rig)
     proc = graph.start('stitcher', params={
         'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
-        'sync_tolerance_s': 0.001})
+        'sync_tolerance_s': 0.001, 'image_reliability': 'best_effort'})
     pubs = [graph.node.create_publisher(Image, f'cam{i}/image_raw', qos_profile_sensor_data)
             for i in range(2)]
     att = graph.node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
@@ -189,7 +190,62 @@ def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_p
     assert _wait_for_log(proc, 'no set of frames with stamps within', 20.0, feed), \
         proc.output()
     # offsets from the newest frame (cam1's): -500 ms, give or take the feeds in flight
-    offset = re.search(r'offsets from the newest frame: cam0 ([+-]\d+) ms', proc.output())
+    offset = re.search(r'offsets from the newest frame: cam0 \(cam0/image_raw\) ([+-]\d+) ms',
+                       proc.output())
     assert offset and -800 <= int(offset.group(1)) <= -250, proc.output()
-    assert 'image is 10x10, the rig file says 64x48' in proc.output()
+    assert 'image on cam1/image_raw: bgr8 image is 10x10, expected 64x48' in proc.output()
     assert proc.output().count('no set of frames with stamps within') == 1
+
+
+@pytest.mark.graph
+def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
+    """A set stamped in the future, then the clock going back: panoramas resume, said."""
+    rig = ring_rig(2, 64, 48, 55.0, 45.0)
+    save_rig(tmp_path / 'rig.yaml', rig)
+    topics = ['cam0/image_raw', 'cam1/image_raw']
+    proc = graph.start('stitcher', params={
+        'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
+        'camera_topics': topics, 'compressed_output': True})
+    panoramas = graph.collect(Image, 'panorama', 10)
+    compressed = graph.collect(CompressedImage, 'panorama/compressed', 10)
+    diagnostics = graph.collect(DiagnosticArray, '/diagnostics', 10)
+    views = [np.full((48, 64, 3), 60 + 100 * i, np.uint8) for i in range(2)]
+    feeder = Feeder(graph, views, topics)
+    # a best-effort camera driver is not received by the (reliable) default: said
+    graph.node.create_publisher(Image, 'cam1/image_raw', qos_profile_sensor_data)
+    offset = [0.0]
+
+    def feed():
+        feeder.attitude(0.0, 0.0, offset[0])
+        feeder.frames(offset_s=offset[0])
+
+    assert _feed_until(panoramas, 2, feed, 20.0), proc.output()
+    assert 'incompatible QoS' in proc.output()
+    assert compressed.wait_for(1, timeout=5.0)
+    jpeg = compressed.snapshot()[0][-1]
+    assert jpeg.format == 'bgr8; jpeg compressed bgr8' and bytes(jpeg.data[:2]) == b'\xff\xd8'
+    for jump_s in (1000.0, -1000.0):
+        offset[0] = jump_s
+        feed()                           # one set stamped 1000 s ahead, or a bag loop
+        time.sleep(0.3)
+        offset[0] = 0.0 if jump_s > 0 else -1000.0
+        panoramas.clear()
+        msgs = _feed_until(panoramas, 3, feed, 20.0)
+        assert len(msgs) >= 3, proc.output()
+        assert abs(stamp_to_seconds(msgs[-1].header.stamp) - time.time() - offset[0]) < 5.0
+    assert 'time jump of' in proc.output()
+
+    def jumps():
+        for array in diagnostics.snapshot()[0]:
+            for status in array.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if status.name == 'stitcher: panorama' and int(values['time_jumps']) >= 2:
+                    return values
+        return None
+
+    deadline = time.monotonic() + 5.0
+    while jumps() is None and time.monotonic() < deadline:
+        feed()
+        time.sleep(0.1)
+    assert jumps() is not None and 'camera' in jumps()['last_time_jump']
+    assert proc.proc.poll() is None
