@@ -82,12 +82,12 @@ def _add_bag_arguments(parser):
     """``record --bag``: a rosbag2 as the driver node would publish it."""
     parser.add_argument('--bag', metavar='DIR',
                         help='write a rosbag2 (mcap) instead of CSV: topic /imu/data_raw, '
-                             'sensor_msgs/Imu, sensor-data QoS, the driver\'s frame and '
-                             'covariance; `ros2 bag play DIR` replays it')
+                             'sensor_msgs/Imu, sensor-data QoS, frame and covariance as the '
+                             'driver; `ros2 bag play DIR` replays it')
     parser.add_argument('--bag-format', choices=('mcap', 'sqlite3'), default='mcap',
                         help='rosbag2 storage of --bag (default mcap)')
     parser.add_argument('--frame-id', default='imu_link',
-                        help='header.frame_id of --bag messages (the driver\'s default)')
+                        help='header.frame_id of --bag messages (default: the driver default)')
 
 
 def _check_outputs(args):
