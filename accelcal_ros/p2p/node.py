@@ -1,9 +1,12 @@
 """
 ``p2p``: camera pose from two emitters and the accelerometer's vertical (thin ROS wiring).
 
-Subscribes (relative; sensor-data QoS, which also receives from reliable publishers; the
-image subscription is reliable with ``image_qos:=reliable``):
-``image`` (sensor_msgs/Image: mono8, bgr8 or rgb8), ``camera_info``
+Subscribes (relative; sensor-data QoS, which also receives from reliable publishers, except
+``image``: reliable keep-last 2 by default, so that every frame of a reliable camera driver
+arrives whole and a slow node only drops older frames; ``image_qos:=sensor_data`` for
+best-effort drivers): ``image`` (sensor_msgs/Image in any encoding of
+:mod:`accelcal_ros.rosutil.images`; received raw, the pixels read as a numpy view on the
+received buffer, no copy for mono8), ``camera_info``
 (sensor_msgs/CameraInfo: K, D and distortion_model) and ``attitude``
 (geometry_msgs/Vector3Stamped: x = roll, y = pitch of the IMU in rad, REP-103, as the
 ``attitude`` node publishes it; matched to each image by stamp).
@@ -23,17 +26,18 @@ import threading
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
-from accelcal_ros.rosutil.images import image_msg_to_array
+from accelcal_ros.rosutil.images import image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Vector3Stamped
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Header
 
 
 def _pose_msg(solution):
@@ -60,8 +64,11 @@ class P2PNode(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         qos = qos_profile_sensor_data
         image_qos = qos if self.params['image_qos'] == 'sensor_data' else QoSProfile(
-            depth=5, reliability=ReliabilityPolicy.RELIABLE)
-        self.create_subscription(Image, 'image', self._on_image, image_qos)
+            depth=2, reliability=ReliabilityPolicy.RELIABLE)
+        self._qos_warned = False
+        self.create_subscription(
+            Image, 'image', self._on_image, image_qos, raw=True,
+            event_callbacks=SubscriptionEventCallbacks(incompatible_qos=self._incompatible))
         self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info, qos)
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude, qos)
         self._camera_info_key = None
@@ -107,19 +114,33 @@ class P2PNode(Node):
         for result in results:
             self._publish(result)
 
-    def _on_image(self, msg):
+    def _incompatible(self, event):
+        if not self._qos_warned:
+            self._qos_warned = True
+            self.get_logger().warning(
+                f'{self._topic("image")}: a publisher with incompatible QoS (best effort?) '
+                'is ignored; set image_qos:=sensor_data for best-effort camera drivers')
+
+    def _on_image(self, data):
+        """Raw (serialized) image: header fields parsed, pixels viewed in place."""
         self._counts['images'] += 1
-        stamp = stamp_to_seconds(msg.header.stamp)
         try:
-            grey = image_msg_to_array(msg, want='mono8')
+            raw = parse_image_cdr(data)
+            enc = raw.encoding.lower()
+            grey = image_array(raw.height, raw.width, raw.encoding, raw.is_bigendian,
+                               raw.step, raw.data, raw.offset,
+                               want=None if enc in ('mono8', '8uc1') else 'mono8',
+                               topic=self._topic('image'))
         except InputError as exc:
             self._counts['no_pose'] += 1
             self._note(f'image rejected: {exc}')
             return
+        header = Header(frame_id=raw.frame_id)
+        header.stamp.sec, header.stamp.nanosec = raw.stamp_sec, raw.stamp_nanosec
         with self._lock:
             try:
-                results = self.pipeline.add_image(stamp, msg.header.frame_id, grey,
-                                                  tag=msg.header)
+                results = self.pipeline.add_image(raw.stamp_s, raw.frame_id, grey,
+                                                  tag=header)
             except AccelcalError as exc:
                 self._counts['no_pose'] += 1
                 self._note(f'image rejected: {exc}')

@@ -58,11 +58,11 @@ P2P_PARAMS = (
               'last pose if that is at most this old (stamp time); otherwise report the '
               'ambiguity and publish no pose (0: never).', minimum=0.0, maximum=3600.0,
               unit='s'),
-    ParamSpec('image_qos', 'sensor_data', 'QoS of the image subscription: sensor_data (best '
-              'effort, depth 5) or reliable (depth 5). Large frames (1 MB and more) from '
-              'another process are often lost with best effort over UDP; use reliable when '
-              'the camera driver publishes reliably.', choices=('sensor_data', 'reliable'),
-              read_only=True),
+    ParamSpec('image_qos', 'reliable', 'QoS of the image subscription: reliable (default, '
+              'keep-last 2: every frame of a reliable camera driver arrives whole, however '
+              'large; a slow node only drops older frames) or sensor_data (best effort, '
+              'depth 5: for best-effort drivers, which a reliable subscription does not '
+              'receive from).', choices=('sensor_data', 'reliable'), read_only=True),
     ParamSpec('diagnostics_period_s', 1.0, 'Period of /diagnostics messages.', minimum=0.1,
               maximum=60.0, unit='s'),
 )

@@ -25,12 +25,13 @@ class Probe:
 
     def __init__(self, graph):
         from geometry_msgs.msg import Vector3Stamped
-        from rclpy.qos import qos_profile_sensor_data
+        from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import CameraInfo, Image
 
         node = graph.node
         self.node = node
-        self.image = node.create_publisher(Image, 'image', qos_profile_sensor_data)
+        self.image = node.create_publisher(
+            Image, 'image', QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE))
         self.info = node.create_publisher(CameraInfo, 'camera_info', 10)
         self.attitude = node.create_publisher(Vector3Stamped, 'attitude',
                                               qos_profile_sensor_data)
