@@ -5,6 +5,8 @@ Layout: every feature is a subpackage holding a pure core (numpy/scipy/OpenCV, n
 rclpy) and, beside it, a thin ROS 2 node module (``node.py`` or ``*_node.py``) that only
 does parameters, QoS, message conversion and wiring. Shared pieces:
 
+- :mod:`accelcal_ros.sensor`   -- sensor facts below every feature: the accelerometer model,
+  ADXL345 datasheet, recording and calibration file formats, standard gravity, stillness.
 - :mod:`accelcal_ros.errors`   -- the exception hierarchy every module raises.
 - :mod:`accelcal_ros.frames`   -- frame and sign conventions (REP-103/145, paper A).
 - :mod:`accelcal_ros.fileio`   -- atomic file writing, YAML/CSV reading with line numbers.
@@ -13,6 +15,3 @@ does parameters, QoS, message conversion and wiring. Shared pieces:
 """
 
 __version__ = '0.1.0'
-
-STANDARD_GRAVITY = 9.80665
-"""One g in m/s^2 (the paper's unit of acceleration)."""

@@ -20,8 +20,8 @@ import time
 
 from accelcal_ros.calibration.coverage import recommended_directions
 from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.calibration.study import simulate_position_means
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 
 
@@ -37,8 +37,8 @@ def bench_fit(repeat):
     rng = np.random.default_rng(0)
     print(f'{"K":>5} {"model":>9} {"LM fit ms":>10} {"finish ms":>10} {"evaluations":>12}')
     for positions in (12, 100, 500):
-        means, stds = simulate_position_means(SensorModel(), recommended_directions(positions),
-                                              100, rng)
+        means, stds = simulate_position_means(paper_a_model(500),
+                                              recommended_directions(positions), 100, rng)
         for model in ('diagonal', 'full'):
             bare, full, evaluations = [], [], 0
             for _ in range(repeat):

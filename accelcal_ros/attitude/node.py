@@ -14,21 +14,21 @@ the input's header (stamp and frame_id):
 The calibration comes from ``calibration_file`` or from the ``calibration.*`` parameters,
 both settable at run time (``ros2 param set``, or the calibration node's finish). A bad
 file or value is rejected with the reason and the last good calibration stays in use.
-Core: :class:`~accelcal_ros.attitude.tilt.TiltEstimator`.
+Core: :class:`~accelcal_ros.sensor.tilt.TiltEstimator`.
 """
 import math
 import os
 
-from accelcal_ros import STANDARD_GRAVITY
 from accelcal_ros.attitude.params import ATTITUDE_PARAMS
-from accelcal_ros.attitude.tilt import quaternion_from_roll_pitch, TiltEstimator
-from accelcal_ros.calibration.calibration_file import load_calibration
-from accelcal_ros.calibration.model import SensorModel
-from accelcal_ros.driver.sim_sensor import datasheet_noise_std_g
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.sensor.calibration_file import load_calibration
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
+from accelcal_ros.sensor.model import SensorModel
+from accelcal_ros.sensor.tilt import quaternion_from_roll_pitch, TiltEstimator
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
@@ -144,8 +144,8 @@ class AttitudeNode(Node):
         a = msg.linear_acceleration
         stamp = stamp_to_seconds(msg.header.stamp)
         self._update_noise(stamp)
-        est = self.estimator.update(stamp, (a.x / STANDARD_GRAVITY, a.y / STANDARD_GRAVITY,
-                                            a.z / STANDARD_GRAVITY))
+        g = STANDARD_GRAVITY_M_S2
+        est = self.estimator.update(stamp, (a.x / g, a.y / g, a.z / g))
         if est is None:
             if not self._warned_nan:
                 self._warned_nan = True
@@ -164,17 +164,17 @@ class AttitudeNode(Node):
         imu.orientation_covariance = [float(cov[0, 0]), float(cov[0, 1]), 0.0,
                                       float(cov[1, 0]), float(cov[1, 1]), 0.0,
                                       0.0, 0.0, float(self.params['yaw_variance'])]
-        f = est.force_g * STANDARD_GRAVITY
+        f = est.force_g * STANDARD_GRAVITY_M_S2
         imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
             float(f[0]), float(f[1]), float(f[2]))
-        fcov = self.estimator.force_covariance_g2() * STANDARD_GRAVITY ** 2
+        fcov = self.estimator.force_covariance_g2() * STANDARD_GRAVITY_M_S2 ** 2
         imu.linear_acceleration_covariance = [float(v) for v in fcov.ravel()]
         self.imu_pub.publish(imu)
 
 
 def main(args=None):
     """Run the ``attitude`` node."""
-    return run(AttitudeNode, args, threads=1)
+    return run(AttitudeNode, args, executor='events')
 
 
 if __name__ == '__main__':

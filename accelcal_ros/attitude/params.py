@@ -1,6 +1,6 @@
 """Parameters of the ``attitude`` node (pure specifications, checked without ROS)."""
-from accelcal_ros.calibration.ellipsoid_fit import MODELS
 from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.sensor.model import MODELS
 
 CALIBRATION_KEYS = ('calibration.model', 'calibration.scale', 'calibration.bias',
                     'calibration.misalignment', 'calibration.tilt_std_deg')

@@ -13,9 +13,9 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
 """
 import sys
 
+from accelcal_ros.cli_args import (float_in, nonnegative_float, nonnegative_int, positive_float,
+                                   positive_int)
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
-from accelcal_ros.cli_args import (float_in, nonnegative_float, nonnegative_int,
-                                   positive_float, positive_int)
 
 
 def register(subparsers, study_subparsers):

@@ -126,7 +126,7 @@ def tilt_errors_rad(truth, estimates, grid=TEST_GRID):
     """
     Roll and pitch errors (rad) of calibrations over the test orientations.
 
-    ``truth`` is a :class:`~accelcal_ros.calibration.model.SensorModel` that makes the raw
+    ``truth`` is a :class:`~accelcal_ros.sensor.model.SensorModel` that makes the raw
     readings (noise-free); ``estimates`` a list of them (or arrays of scale (S, 3), bias
     (S, 3), misalignment (S, 3)) that correct them. Returns ``(roll_err, pitch_err)``,
     each (S, G), roll wrapped to [-pi, pi).

@@ -2,7 +2,7 @@ r"""
 Sensitivity-ellipsoid fit by Levenberg-Marquardt (paper A, eq. 5), in units of g.
 
 For ``K`` still positions with mean raw readings ``a_k`` (g), the corrected specific force
-is ``f_k = T diag(1/k) (a_k - b)`` (:mod:`accelcal_ros.calibration.model`), and at rest it
+is ``f_k = T diag(1/k) (a_k - b)`` (:mod:`accelcal_ros.sensor.model`), and at rest it
 must have unit length. The residual of position ``k`` is paper A's eq. (5),
 
 .. math::  r_k = \lVert T\,\mathrm{diag}(1/k)\,(a_k - b) \rVert - 1,
@@ -27,19 +27,19 @@ from typing import List, Optional
 
 from accelcal_ros.calibration.coverage import (describe_direction, direction_spread_deg,
                                                predicted_tilt_error_deg, suggest_directions)
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.errors import CalibrationError, InputError
+from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
+from accelcal_ros.sensor.model import MODELS, SensorModel
 import numpy as np
 from scipy.optimize import least_squares
 
-MODELS = ('diagonal', 'full')
 """Calibration models: paper A's 6-parameter one and the 9-parameter imu_tk one."""
 PARAMETER_NAMES = {
     'diagonal': ('scale_x', 'scale_y', 'scale_z', 'bias_x', 'bias_y', 'bias_z'),
     'full': ('scale_x', 'scale_y', 'scale_z', 'bias_x', 'bias_y', 'bias_z',
              'misalignment_yz', 'misalignment_zy', 'misalignment_zx'),
 }
-DEFAULT_NOISE_STD_G = np.array([0.0029, 0.0029, 0.0043])
+DEFAULT_NOISE_STD_G = np.array(NOISE_STD_100HZ_G)
 """Per-sample noise (g) assumed when a position has one sample: ADXL345 at 100 Hz."""
 NOISE_FLOOR_G = 1e-4
 """Smallest standard deviation (g) trusted for one averaged position (drift, tremor)."""

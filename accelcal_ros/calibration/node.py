@@ -15,14 +15,14 @@ every ``status_period_s`` while a session runs. The session logic is the pure
 """
 import os
 
-from accelcal_ros import STANDARD_GRAVITY
-from accelcal_ros.calibration.calibration_file import save_calibration
 from accelcal_ros.calibration.params import CALIBRATION_PARAMS, calibrator_config
 from accelcal_ros.calibration.session import Calibrator
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.sensor.calibration_file import save_calibration
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 import numpy as np
 from rcl_interfaces.srv import SetParameters
@@ -64,7 +64,7 @@ class CalibrationNode(Node):
         if not self.calibrator.active:
             return
         a = msg.linear_acceleration
-        raw_g = np.array([a.x, a.y, a.z]) / STANDARD_GRAVITY
+        raw_g = np.array([a.x, a.y, a.z]) / STANDARD_GRAVITY_M_S2
         events = self.calibrator.add_samples(stamp_to_seconds(msg.header.stamp), raw_g)
         captured = False
         for event in events:
@@ -234,7 +234,7 @@ class CalibrationNode(Node):
 
 def main(args=None):
     """Run the ``calibration`` node."""
-    return run(CalibrationNode, args, threads=1)
+    return run(CalibrationNode, args, executor='events')
 
 
 if __name__ == '__main__':

@@ -1,9 +1,9 @@
 """Parameters of the ``calibration`` node (pure specifications, checked without ROS)."""
 import os
 
-from accelcal_ros.calibration.ellipsoid_fit import MODELS
 from accelcal_ros.calibration.session import CalibratorConfig
 from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.sensor.model import MODELS
 
 
 def _non_empty(value):

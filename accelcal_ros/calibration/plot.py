@@ -53,7 +53,7 @@ def plot_calibration(path, captures_g, residuals_g, sensor_model, dropped=(), ti
 
 def plot_calibration_file(path, calibration_path):
     """Write the plot of a calibration file (which stores its captures) to ``path``."""
-    from accelcal_ros.calibration.calibration_file import load_calibration
+    from accelcal_ros.sensor.calibration_file import load_calibration
     from accelcal_ros.errors import FileFormatError
 
     record = load_calibration(calibration_path)

@@ -2,7 +2,7 @@ r"""
 Accuracy study of the field calibration against ground truth (``accelcal study calibration``).
 
 Monte Carlo on the simulated ADXL345 (:mod:`accelcal_ros.driver.sim_sensor`): truth =
-paper A's K = 500 estimates (``SensorModel()``), datasheet noise at 100 Hz (2.9 / 2.9 /
+paper A's K = 500 estimates (``paper_a_model(500)``), datasheet noise at 100 Hz (2.9 / 2.9 /
 4.3 mg), 3.9 mg quantisation. For each number of positions K, layout (uniform random
 directions as in paper A, or the recommended fixed set of
 :func:`~accelcal_ros.calibration.coverage.recommended_directions`) and sampling (one sample
@@ -17,15 +17,14 @@ sensor) recomputed with the package's own model and angle code, see
 """
 import time
 
-from accelcal_ros.calibration.coverage import (recommended_directions, TEST_GRID,
-                                               tilt_errors_rad, unit_directions)
+from accelcal_ros.calibration.coverage import (recommended_directions, TEST_GRID, tilt_errors_rad,
+                                               unit_directions)
 from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid, parameter_count
-from accelcal_ros.calibration.model import (PAPER_K100_BIAS, PAPER_K100_SCALE,
-                                            PAPER_K300_BIAS, PAPER_K300_SCALE, SensorModel)
-from accelcal_ros.driver.sim_sensor import datasheet_noise_std_g, FULL_RES_G_PER_LSB
 from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.frames import (paper_roll_pitch, roll_pitch_from_specific_force,
                                  specific_force_from_roll_pitch)
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB
+from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
 
 SIM_RATE_HZ = 100.0
@@ -94,12 +93,12 @@ def fitted_models(positions=12, seconds_per_position=1.0, count=100, seed=0,
     Return ``count`` independent calibrations (SensorModel) of the default sim sensor.
 
     Each is fitted by the package's own LM fit from ``positions`` simulated captures
-    (truth ``SensorModel()`` = paper A K=500, datasheet noise, 100 Hz so that
+    (truth ``paper_a_model(500)`` = paper A K=500, datasheet noise, 100 Hz so that
     ``seconds_per_position`` = 1 averages 100 samples; at least one sample). A draw whose
     positions the fit refuses (random layouts with few positions) is replaced by a new one.
     """
     samples = max(1, int(round(seconds_per_position * SIM_RATE_HZ)))
-    models, _, _, _ = _fit_trials(SensorModel(), positions, samples, count, seed, layout,
+    models, _, _, _ = _fit_trials(paper_a_model(500), positions, samples, count, seed, layout,
                                   model)
     if len(models) < count:
         raise CalibrationError(f'only {len(models)} of {count} simulated calibrations with '
@@ -154,9 +153,8 @@ def paper_worked_example():
     ADXL345, REP-145), and pitch from :func:`accelcal_ros.frames.paper_roll_pitch` (which
     equals :func:`~accelcal_ros.frames.roll_pitch_from_specific_force`'s pitch).
     """
-    truth = SensorModel()
-    sets = {100: SensorModel(PAPER_K100_SCALE, PAPER_K100_BIAS),
-            300: SensorModel(PAPER_K300_SCALE, PAPER_K300_BIAS)}
+    truth = paper_a_model(500)
+    sets = {100: paper_a_model(100), 300: paper_a_model(300)}
     rows = []
     for k, estimate in sets.items():
         paper_case = estimate.correct(truth.distort(np.array([0.0, 0.0, -1.0])))
@@ -200,7 +198,7 @@ def format_worked_example(rows):
 def run_study(trials=100, seed=0, counts=POSITION_COUNTS, models=('diagonal', 'full'),
               layouts=('random', 'recommended'), samples_options=(1, 100), say=print):
     """Run the study, printing a table with ``say``; returns the rows."""
-    truth = SensorModel()
+    truth = paper_a_model(500)
     rows = []
     say(f'Calibration accuracy study: truth = paper A K=500 (scale {truth.scale.tolist()}, '
         f'bias {truth.bias.tolist()} g), ADXL345 datasheet noise at 100 Hz, {trials} trials '
@@ -242,7 +240,8 @@ def format_row(row):
 
 def run_real_like(trials=100, seed=0, say=print):
     """Diagonal vs full model on a sensor with ~1 % cross-axis coupling; returns rows."""
-    truth = SensorModel(misalignment=REAL_LIKE_MISALIGNMENT)
+    truth = paper_a_model(500)
+    truth = SensorModel(truth.scale, truth.bias, REAL_LIKE_MISALIGNMENT)
     say(f'Real-like sensor: paper K=500 scale/bias plus misalignment '
         f'{list(REAL_LIKE_MISALIGNMENT)} rad (~1 % cross-axis coupling)')
     rows = []

@@ -11,10 +11,10 @@ after the calibration was applied. Writes ``calibration.yaml`` and ``calibration
 import os
 import time
 
-from accelcal_ros.calibration.calibration_file import load_calibration
 from accelcal_ros.calibration.coverage import recommended_directions, roll_pitch_deg_of
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.sensor.calibration_file import load_calibration
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 
 
@@ -66,7 +66,7 @@ def run(ctx):
     from std_srvs.srv import Trigger
 
     dwell, move, still = (1.0, 0.4, 0.7) if ctx.quick else (1.5, 0.6, 1.0)
-    truth = SensorModel()
+    truth = paper_a_model(500)
     poses = roll_pitch_deg_of(recommended_directions(14)).ravel().tolist()
     output = os.path.abspath(os.path.join(ctx.out_dir, 'calibration.yaml'))
     ctx.say(f'$ ros2 run accelcal_ros imu_driver --ros-args -p backend:=sim -p rate_hz:=100.0 '

@@ -1,7 +1,7 @@
 """Demo stage ``driver``: the ADXL345 driver on the simulated sensor, with a live readout."""
 import time
 
-from accelcal_ros import STANDARD_GRAVITY
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np

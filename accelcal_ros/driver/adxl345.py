@@ -19,8 +19,8 @@ import os
 import struct
 
 from accelcal_ros.driver import adxl345_registers as reg
-from accelcal_ros.driver.sim_sensor import FULL_RES_G_PER_LSB
 from accelcal_ros.errors import DeviceError, InputError
+from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
 import numpy as np
 
 

@@ -13,11 +13,11 @@ DRIVER_PARAMS`.
 import threading
 import time
 
-from accelcal_ros import STANDARD_GRAVITY
 from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
-from accelcal_ros.driver.sim_sensor import datasheet_noise_std_g
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
@@ -40,7 +40,7 @@ class ImuDriverNode(Node):
                           if backend == 'sim' else None)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._imu = Imu()
-        std = datasheet_noise_std_g(self.params['rate_hz']) * STANDARD_GRAVITY
+        std = datasheet_noise_std_g(self.params['rate_hz']) * STANDARD_GRAVITY_M_S2
         if backend == 'sim':
             std = std * self.params['sim.noise_scale']
         self._imu.linear_acceleration_covariance = [float(std[0] ** 2), 0.0, 0.0,
@@ -73,7 +73,7 @@ class ImuDriverNode(Node):
     def _publish(self, batch):
         imu, truth = self._imu, self._truth
         imu.header.frame_id = truth.header.frame_id = self.params['frame_id']
-        accel = batch.samples_g * STANDARD_GRAVITY
+        accel = batch.samples_g * STANDARD_GRAVITY_M_S2
         for k in range(len(batch)):
             total_ns = int(batch.stamps[k] * 1e9)
             imu.header.stamp.sec, imu.header.stamp.nanosec = divmod(total_ns, 1_000_000_000)
@@ -130,7 +130,7 @@ class ImuDriverNode(Node):
 
 def main(args=None):
     """Run the ``imu_driver`` node."""
-    return run(ImuDriverNode, args)
+    return run(ImuDriverNode, args, executor='events')
 
 
 if __name__ == '__main__':

@@ -1,10 +1,10 @@
 """Parameters of the ``imu_driver`` node (pure: specifications and source construction)."""
-from accelcal_ros.calibration.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
 from accelcal_ros.driver import adxl345_registers as reg
-from accelcal_ros.driver.sim_sensor import (OUTPUT_DATA_RATES_HZ, poses_from_flat_list,
-                                            RANGES_G, SimulatedAdxl345)
+from accelcal_ros.driver.sim_sensor import poses_from_flat_list, SimulatedAdxl345
 from accelcal_ros.errors import InputError
 from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.sensor.datasheet import OUTPUT_DATA_RATES_HZ, RANGES_G
+from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
 
 
 def _poses_reason(values):

@@ -16,7 +16,7 @@ import struct
 import time
 
 from accelcal_ros.driver import adxl345_registers as reg
-from accelcal_ros.driver.sim_sensor import FULL_RES_G_PER_LSB
+from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
 import numpy as np
 
 _RATES = {code: rate for rate, code in reg.RATE_CODES.items()}

@@ -1,36 +1,26 @@
 r"""
 A simulated ADXL345 visiting a list of static orientations (pure core).
 
-Truth model: :class:`~accelcal_ros.calibration.model.SensorModel` (default paper A's
-K = 500 estimates, scale [0.928, 0.909, 0.896], bias [-0.025, -0.037, -0.056] g). The
-sensor dwells ``dwell_s`` in each orientation of ``poses`` (roll, pitch; REP-103) and
-turns smoothly in ``move_s`` to the next (slerp with a smoothstep profile), cycling.
+Truth model: :class:`~accelcal_ros.sensor.model.SensorModel` (default, passed
+explicitly: ``paper_a_model(500)``, paper A's K = 500 estimates, scale [0.928, 0.909,
+0.896], bias [-0.025, -0.037, -0.056] g). The sensor dwells ``dwell_s`` in each
+orientation of ``poses`` (roll, pitch; REP-103) and turns smoothly in ``move_s`` to the
+next (slerp with a smoothstep profile), cycling.
 
-Noise (ADXL345 datasheet, Rev. G, Table 1): 0.75 LSB rms on x and y, 1.1 LSB rms on z at
-100 Hz output data rate, with 3.9 mg/LSB in full resolution, i.e. 2.9 mg and 4.3 mg.
-White noise over a bandwidth of ODR/2 scales with ``sqrt(ODR / 100 Hz)``. The datasheet
-figure is the noise of the quantised output, so the analog noise drawn before
+Noise (:mod:`accelcal_ros.sensor.datasheet`; ADXL345 datasheet, Rev. G, Table 1): 0.75
+LSB rms on x and y, 1.1 LSB rms on z at 100 Hz output data rate, with 3.9 mg/LSB in
+full resolution, i.e. 2.9 mg and 4.3 mg. White noise over a bandwidth of ODR/2 scales
+with ``sqrt(ODR / 100 Hz)``. The datasheet figure is the noise of the quantised output, so the analog noise drawn before
 quantisation has variance ``sigma^2 - LSB^2 / 12``. Readings are quantised to the
 full-resolution LSB (3.9 mg) and clipped to +-range.
 Everything is deterministic for a given ``seed`` (samples drawn in order).
 """
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import specific_force_from_roll_pitch
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB, RANGES_G
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 from scipy.spatial.transform import Rotation
-
-FULL_RES_G_PER_LSB = 0.0039
-"""ADXL345 full-resolution scale factor, 3.9 mg/LSB (datasheet typical)."""
-NOISE_LSB_RMS_100HZ = np.array([0.75, 0.75, 1.1])
-"""Datasheet noise at ODR = 100 Hz, LSB rms, x/y/z."""
-OUTPUT_DATA_RATES_HZ = (6.25, 12.5, 25.0, 50.0, 100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0)
-RANGES_G = (2, 4, 8, 16)
-
-
-def datasheet_noise_std_g(rate_hz):
-    """Per-axis noise standard deviation in g at output data rate ``rate_hz``."""
-    return NOISE_LSB_RMS_100HZ * FULL_RES_G_PER_LSB * np.sqrt(rate_hz / 100.0)
 
 
 def near_uniform_poses_deg(count=24):
@@ -71,7 +61,7 @@ class SimulatedAdxl345:
             raise InputError(f'range_g must be one of {RANGES_G}, got {range_g}')
         if rate_hz <= 0 or dwell_s <= 0 or move_s < 0:
             raise InputError('rate_hz and dwell_s must be positive, move_s non-negative')
-        self.truth = truth if truth is not None else SensorModel()
+        self.truth = truth if truth is not None else paper_a_model(500)
         self.rate_hz = float(rate_hz)
         self.range_g = range_g
         poses = near_uniform_poses_deg(24) if poses_deg is None else np.asarray(poses_deg)

@@ -15,7 +15,8 @@ import time
 from typing import Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
-from accelcal_ros.driver.replay import load_recording, mps2_to_g
+from accelcal_ros.sensor.recording import load_recording
+from accelcal_ros.sensor.units import mps2_to_g
 import numpy as np
 
 

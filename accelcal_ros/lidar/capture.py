@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from itertools import takewhile
 
 from accelcal_ros.lidar.boresight import StaticPosition
-from accelcal_ros.lidar.static_segments import STANDARD_GRAVITY_M_S2
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 
 

@@ -11,15 +11,14 @@ magnitude below ``gyro_rate_threshold_rad_s`` (when a gyro is logged), or else w
 standard deviation of every accelerometer axis is below ``accel_std_threshold_m_s2``.
 Runs of static samples shorter than ``min_duration_s`` are dropped. The gravity of a
 segment is the mean specific force (REP-145: +g on the up axis, m/s^2) with, when a
-:class:`~accelcal_ros.calibration.model.SensorModel` is given, the calibration applied
+:class:`~accelcal_ros.sensor.model.SensorModel` is given, the calibration applied
 (``f = T diag(1/k) (a - b)`` in g, paper A eq. 1 / the full model).
 """
 from dataclasses import dataclass
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
-
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 
 @dataclass
@@ -126,9 +125,9 @@ def load_calibration_model(path):
     """
     Load an accelerometer calibration (issue 3's file) as a SensorModel.
 
-    Uses :func:`accelcal_ros.calibration.calibration_file.load_sensor_model`, which raises
+    Uses :func:`accelcal_ros.sensor.calibration_file.load_sensor_model`, which raises
     FileFormatError for missing, truncated or wrong-shape files.
     """
-    from accelcal_ros.calibration.calibration_file import load_sensor_model
+    from accelcal_ros.sensor.calibration_file import load_sensor_model
 
     return load_sensor_model(path)

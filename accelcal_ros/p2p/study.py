@@ -21,7 +21,7 @@ Modelling choices (the paper leaves them open; its simulation model is in its re
   end-on: end-on the two emitters fall on one ray).
 - The IMU is mounted on the camera with :data:`~accelcal_ros.frames.DEFAULT_IMU_TO_CAMERA`
   and is calibrated perfectly except for the calibration set under test: the truth is
-  paper A's K = 500 estimate (``SensorModel()``); the raw reading of the true specific
+  paper A's K = 500 estimate (``paper_a_model(500)``); the raw reading of the true specific
   force ``f`` is ``a = truth.distort(f)`` and the attitude comes from
   ``est.correct(a)`` (REP-103 roll/pitch). Then 0.05 deg RMS Gaussian noise is added to
   roll and pitch independently. Image points are exact (the paper names no pixel noise);
@@ -47,11 +47,11 @@ cannot measure range at all and a small elevation magnifies tilt errors roughly 
 """
 from dataclasses import asdict, dataclass
 
-from accelcal_ros.calibration.model import (PAPER_K100_BIAS, PAPER_K100_SCALE,
-                                            PAPER_K300_BIAS, PAPER_K300_SCALE, SensorModel)
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
 from accelcal_ros.p2p.solver import down_from_roll_pitch, solve_batch, yaw_from_rotation
+from accelcal_ros.sensor.model import (paper_a_model, PAPER_K100_BIAS, PAPER_K100_SCALE,
+                                       PAPER_K300_BIAS, PAPER_K300_SCALE, SensorModel)
 import numpy as np
 
 PAPER_TABLE2 = {'K=500': (0.12, 0.17), 'K=300': (1.95, 2.20), 'K=100': (4.03, 4.31),
@@ -117,7 +117,7 @@ def measured_roll_pitch(roll, pitch, estimate, truth=None):
     ``a = truth.distort(f)``, ``f_est = estimate.correct(a)``, REP-103 roll/pitch of
     ``f_est``; ``estimate`` is a SensorModel or a list of them (used in turn per trial).
     """
-    truth = truth or SensorModel()
+    truth = truth or paper_a_model(500)
     force = specific_force_from_roll_pitch(roll, pitch)
     raw = truth.distort(force)
     models = estimate if isinstance(estimate, (list, tuple)) else [estimate]
@@ -189,7 +189,7 @@ def run_trials(scenes, estimate, geometry, rng):
 
 def paper_models():
     """Return ``{label: SensorModel}`` for paper A's K = 500 (truth), 300 and 100 sets."""
-    return {'K=500': SensorModel(),
+    return {'K=500': paper_a_model(500),
             'K=300': SensorModel(np.array(PAPER_K300_SCALE), np.array(PAPER_K300_BIAS)),
             'K=100': SensorModel(np.array(PAPER_K100_SCALE), np.array(PAPER_K100_BIAS))}
 

@@ -67,9 +67,9 @@ def analytic_horizon_rows(geometry, true_roll_pitch, used_roll_pitch,
 
 def tilt_errors_after_calibration(models, truth=None, roll=0.0, pitch=REFERENCE_PITCH_RAD):
     """Return ``(roll_error, pitch_error)`` arrays (rad) of each fitted model at an attitude."""
-    from accelcal_ros.calibration.model import SensorModel
+    from accelcal_ros.sensor.model import paper_a_model
 
-    truth = SensorModel() if truth is None else truth
+    truth = paper_a_model(500) if truth is None else truth
     force = specific_force_from_roll_pitch(roll, pitch)
     raw = truth.distort(force)
     errors = []

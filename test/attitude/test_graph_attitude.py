@@ -2,16 +2,16 @@
 import math
 import time
 
-from accelcal_ros.calibration.calibration_file import save_calibration
 from accelcal_ros.calibration.coverage import recommended_directions
 from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.frames import specific_force_from_roll_pitch
+from accelcal_ros.sensor.calibration_file import save_calibration
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 import pytest
 
 G = 9.80665
-TRUTH = SensorModel()
+TRUTH = paper_a_model(500)
 
 
 def _publish(graph, pub, raw_g, stamp):

@@ -1,11 +1,11 @@
 """``accelcal calibrate / apply / attitude / plot-calibration`` on simulated recordings."""
 import os
 
-from accelcal_ros.calibration.calibration_file import load_sensor_model
 from accelcal_ros.calibration.coverage import recommended_directions, roll_pitch_deg_of
 from accelcal_ros.cli import main
-from accelcal_ros.driver.replay import save_recording
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
+from accelcal_ros.sensor.calibration_file import load_sensor_model
+from accelcal_ros.sensor.recording import save_recording
 import numpy as np
 import pytest
 

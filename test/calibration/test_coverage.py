@@ -1,9 +1,8 @@
 """Sphere coverage, predicted error and hints."""
 from accelcal_ros.calibration.coverage import (coverage_fraction, describe_direction,
-                                               predicted_tilt_error_deg,
-                                               recommended_directions, suggest_directions,
-                                               tilt_errors_rad)
-from accelcal_ros.calibration.model import SensorModel
+                                               predicted_tilt_error_deg, recommended_directions,
+                                               suggest_directions, tilt_errors_rad)
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 
 
@@ -30,7 +29,7 @@ def test_describe_direction_uses_rep103_roll_pitch():
 
 
 def test_tilt_errors_zero_for_the_truth_and_predicted_error_scales_with_covariance():
-    truth = SensorModel()
+    truth = paper_a_model(500)
     roll_err, pitch_err = tilt_errors_rad(truth, [truth])
     assert np.abs(roll_err).max() < 1e-12 and np.abs(pitch_err).max() < 1e-12
     cov = np.eye(9) * 1e-8

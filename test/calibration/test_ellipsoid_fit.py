@@ -2,20 +2,20 @@
 from accelcal_ros.calibration.coverage import recommended_directions, unit_directions
 from accelcal_ros.calibration.ellipsoid_fit import (fit_ellipsoid, params_to_model,
                                                     residuals_and_jacobian)
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.calibration.study import simulate_position_means
 from accelcal_ros.errors import CalibrationError, InputError
+from accelcal_ros.sensor.model import paper_a_model, PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-MISALIGNED = SensorModel(misalignment=(0.008, -0.006, 0.01))
+MISALIGNED = SensorModel(PAPER_K500_SCALE, PAPER_K500_BIAS, (0.008, -0.006, 0.01))
 
 
 @pytest.mark.parametrize('model', ['diagonal', 'full'])
 def test_noise_free_fit_recovers_the_truth(model):
-    truth = SensorModel() if model == 'diagonal' else MISALIGNED
+    truth = paper_a_model(500) if model == 'diagonal' else MISALIGNED
     raw = truth.distort(recommended_directions(14))
     fit = fit_ellipsoid(raw, np.full((14, 3), 1e-4), model=model)
     np.testing.assert_allclose(fit.sensor_model.scale, truth.scale, atol=1e-9)
@@ -53,7 +53,7 @@ def test_diagonal_model_cannot_absorb_misalignment_full_can():
 
 def test_moving_position_is_dropped_with_a_warning():
     rng = np.random.default_rng(2)
-    truth = SensorModel()
+    truth = paper_a_model(500)
     means, sd = simulate_position_means(truth, recommended_directions(14), 100, rng)
     # Position 5 averaged while turning 30 deg: the mean is shorter than 1 g.
     means[5] = truth.bias + (means[5] - truth.bias) * np.cos(np.radians(15.0))
@@ -65,7 +65,7 @@ def test_moving_position_is_dropped_with_a_warning():
 
 
 def test_too_few_positions_refused_with_what_to_do():
-    raw = SensorModel().distort(recommended_directions(6))
+    raw = paper_a_model(500).distort(recommended_directions(6))
     with pytest.raises(CalibrationError, match='at least 10'):
         fit_ellipsoid(raw, model='full')
 
@@ -73,7 +73,7 @@ def test_too_few_positions_refused_with_what_to_do():
 def test_positions_in_one_cone_refused_with_hint():
     rng = np.random.default_rng(3)
     directions = unit_directions(rng.normal([0.0, 0.0, 1.0], 0.15, size=(15, 3)))
-    raw = SensorModel().distort(directions)
+    raw = paper_a_model(500).distort(directions)
     with pytest.raises(CalibrationError) as info:
         fit_ellipsoid(raw, np.full((15, 3), 3e-4), model='full')
     message = str(info.value)
@@ -83,17 +83,17 @@ def test_positions_in_one_cone_refused_with_hint():
 def test_bad_input_rejected():
     with pytest.raises(InputError):
         fit_ellipsoid(np.zeros((12, 2)))
-    raw = SensorModel().distort(recommended_directions(12))
+    raw = paper_a_model(500).distort(recommended_directions(12))
     raw[3, 1] = np.nan
     with pytest.raises(InputError, match='NaN'):
         fit_ellipsoid(raw)
     with pytest.raises(InputError, match='model'):
-        fit_ellipsoid(SensorModel().distort(recommended_directions(12)), model='ellipse')
+        fit_ellipsoid(paper_a_model(500).distort(recommended_directions(12)), model='ellipse')
 
 
 def test_holdout_reported_and_near_the_noise():
     rng = np.random.default_rng(5)
-    means, sd = simulate_position_means(SensorModel(), recommended_directions(14), 100, rng)
+    means, sd = simulate_position_means(paper_a_model(500), recommended_directions(14), 100, rng)
     fit = fit_ellipsoid(means, sd)
     assert fit.holdout_rms_g is not None
     assert fit.residual_rms_g <= fit.holdout_rms_g < 2e-3

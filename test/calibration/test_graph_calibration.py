@@ -1,9 +1,9 @@
 """Graph test: driver (sim) + calibration + attitude as processes, as a user runs them."""
 import time
 
-from accelcal_ros.calibration.calibration_file import load_calibration
 from accelcal_ros.calibration.coverage import recommended_directions, roll_pitch_deg_of
 from accelcal_ros.demo.calibration_stage import dwell_errors_deg
+from accelcal_ros.sensor.calibration_file import load_calibration
 import numpy as np
 import pytest
 

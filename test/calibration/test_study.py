@@ -1,13 +1,13 @@
 """Accuracy study: the target, the paper's worked example, fitted_models."""
 from accelcal_ros.calibration import study
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
+from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
 import pytest
 
 
 def test_target_k12_recommended_one_second_full_model_under_0_1_deg():
-    row = study.study_row(SensorModel(), 12, 100, 40, 0, 'recommended', 'full')
+    row = study.study_row(paper_a_model(500), 12, 100, 40, 0, 'recommended', 'full')
     assert row['fitted'] == 40 and row['refused'] == 0
     assert row['tilt_p95_deg'] < 0.1
     # The prediction from the covariance agrees with the measured p95 within 30 %.
@@ -15,8 +15,8 @@ def test_target_k12_recommended_one_second_full_model_under_0_1_deg():
 
 
 def test_few_single_samples_are_worse_than_averaged_positions():
-    single = study.study_row(SensorModel(), 12, 1, 30, 0, 'recommended', 'full')
-    averaged = study.study_row(SensorModel(), 12, 100, 30, 0, 'recommended', 'full')
+    single = study.study_row(paper_a_model(500), 12, 1, 30, 0, 'recommended', 'full')
+    averaged = study.study_row(paper_a_model(500), 12, 100, 30, 0, 'recommended', 'full')
     assert single['tilt_p95_deg'] > 5 * averaged['tilt_p95_deg']
 
 
@@ -30,7 +30,7 @@ def test_diagonal_model_misses_the_target_on_a_misaligned_sensor():
 def test_fitted_models_interface():
     models = study.fitted_models(positions=12, seconds_per_position=1.0, count=5, seed=3)
     assert len(models) == 5 and all(isinstance(m, SensorModel) for m in models)
-    truth = SensorModel()
+    truth = paper_a_model(500)
     for m in models:
         np.testing.assert_allclose(m.scale, truth.scale, atol=2e-3)
         np.testing.assert_allclose(m.bias, truth.bias, atol=2e-3)
@@ -65,7 +65,7 @@ def test_paper_worked_example_reproduced_by_the_package():
 
 @pytest.mark.filterwarnings('ignore:Gimbal lock')
 def test_vectorised_capture_model_matches_the_simulator():
-    truth = SensorModel()
+    truth = paper_a_model(500)
     direction = np.array([[0.0, 0.0, 1.0]])
     rng = np.random.default_rng(0)
     means, std = study.simulate_position_means(truth, direction, 2000, rng)

@@ -1,13 +1,14 @@
 """ADXL345 register logic against the register-map simulator behind the smbus2 interface."""
 import errno
 
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
 from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus
-from accelcal_ros.driver.sim_sensor import FULL_RES_G_PER_LSB, SimulatedAdxl345
+from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.driver.sources import I2cSource
 from accelcal_ros.errors import DeviceError, InputError
+from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 import pytest
 

@@ -4,11 +4,11 @@ imu_driver as its own process in a real DDS graph, probed as ``ros2 topic echo``
 Checks rate, units, frame and covariance conventions (REP-145), agreement of the
 published samples with the simulator's truth model, diagnostics, and bad parameters.
 """
-from accelcal_ros import STANDARD_GRAVITY
-from accelcal_ros.calibration.model import SensorModel
-from accelcal_ros.driver.replay import save_recording
-from accelcal_ros.driver.sim_sensor import datasheet_noise_std_g
 from accelcal_ros.frames import specific_force_from_roll_pitch
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
+from accelcal_ros.sensor.model import paper_a_model
+from accelcal_ros.sensor.recording import save_recording
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
@@ -55,7 +55,7 @@ def test_sim_driver_publishes_rep145_samples_that_match_the_truth(graph):
     measured = np.array([[p[0].linear_acceleration.x, p[0].linear_acceleration.y,
                           p[0].linear_acceleration.z] for p in pairs])
     rp = np.array([p[1] for p in pairs])
-    expected = SensorModel().distort(specific_force_from_roll_pitch(rp[:, 0], rp[:, 1]))
+    expected = paper_a_model(500).distort(specific_force_from_roll_pitch(rp[:, 0], rp[:, 1]))
     residual = measured - expected * STANDARD_GRAVITY
     std = np.sqrt(var)
     assert np.all(np.abs(residual.mean(axis=0)) < 4 * std / np.sqrt(len(pairs)) + 0.003)

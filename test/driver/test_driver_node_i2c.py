@@ -8,10 +8,10 @@ and their diagnostics go through the node's own code.
 import threading
 import time
 
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.driver import sources
 from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
+from accelcal_ros.sensor.model import SensorModel
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pytest

@@ -1,10 +1,10 @@
 """The simulated ADXL345: truth model, datasheet noise, quantisation, schedule."""
-from accelcal_ros.calibration.model import SensorModel
-from accelcal_ros.driver.sim_sensor import (datasheet_noise_std_g, FULL_RES_G_PER_LSB,
-                                            near_uniform_poses_deg, poses_from_flat_list,
+from accelcal_ros.driver.sim_sensor import (near_uniform_poses_deg, poses_from_flat_list,
                                             SimulatedAdxl345)
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import roll_pitch_from_specific_force, specific_force_from_roll_pitch
+from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB
+from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
 import pytest
 
@@ -18,7 +18,7 @@ def test_noise_matches_datasheet_and_readings_are_quantised():
     assert readings.std(axis=0) == pytest.approx(expected, rel=0.05)
     assert np.allclose(readings / FULL_RES_G_PER_LSB, np.round(readings / FULL_RES_G_PER_LSB))
     # mean = truth model K f + b for a level sensor (f = [0, 0, 1])
-    truth = SensorModel()
+    truth = paper_a_model(500)
     assert readings.mean(axis=0) == pytest.approx(truth.distort([0.0, 0.0, 1.0]), abs=3e-4)
 
 

@@ -104,7 +104,7 @@ def test_error_budget_cli(capsys):
 
 def test_boresight_cli_applies_accelerometer_calibration(tmp_path):
     """``--calibration`` loads issue 3's file and removes the IMU bias before averaging."""
-    from accelcal_ros.calibration.model import SensorModel
+    from accelcal_ros.sensor.model import SensorModel
 
     model = SensorModel([1.0, 1.0, 1.0], [0.01, -0.012, 0.008], [0.0, 0.0, 0.0])
     protocol = sim.simulate_protocol(TRUTH, seed=6, imu_model=model, still_s=3.0)

@@ -2,10 +2,10 @@
 import io
 import json
 
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.cli import main
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rpy_radians_from_rotation
 from accelcal_ros.p2p import render, study
+from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
 import pytest
 
@@ -116,7 +116,7 @@ def test_study_error_is_zero_without_noise_and_calibration_error():
     geometry = study.StudyGeometry(tilt_noise_deg=0.0)
     rng = np.random.default_rng(0)
     scenes = study.random_scenes(300, rng, geometry)
-    row = study.run_trials(scenes, SensorModel(), geometry, rng)
+    row = study.run_trials(scenes, paper_a_model(500), geometry, rng)
     assert row['failed'] == 0
     assert row['yaw_deg']['rms'] < 1e-9 and row['range_pct']['rms'] < 1e-9
 

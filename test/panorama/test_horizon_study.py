@@ -1,9 +1,9 @@
 """The horizon study (paper A Fig. 6): closed form, rendered measurement, calibration row."""
 import math
 
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.panorama import horizon_study
 from accelcal_ros.panorama.projection import PanoramaGeometry
+from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
 import pytest
 
@@ -27,7 +27,7 @@ def test_closed_form_horizon():
 
 def test_tilt_errors_of_perfect_and_biased_calibrations():
     """The true model gives zero tilt error; a 0.01 g x-bias about 0.6 deg of pitch."""
-    truth = SensorModel()
+    truth = paper_a_model(500)
     biased = SensorModel(truth.scale, truth.bias + [0.01, 0.0, 0.0], truth.misalignment)
     roll_err, pitch_err = horizon_study.tilt_errors_after_calibration([truth, biased], truth)
     assert abs(roll_err[0]) < 1e-12 and abs(pitch_err[0]) < 1e-12
@@ -36,7 +36,7 @@ def test_tilt_errors_of_perfect_and_biased_calibrations():
 
 def test_quick_study_rendered_matches_closed_form(tmp_path):
     """The quick study's rendered horizon agrees with the closed form within a pixel."""
-    truth = SensorModel()
+    truth = paper_a_model(500)
     rng = np.random.default_rng(0)
     models = [SensorModel(truth.scale * (1 + rng.normal(0, 1e-3, 3)),
                           truth.bias + rng.normal(0, 1e-3, 3)) for _ in range(5)]

@@ -1,8 +1,7 @@
 """The one stillness detector: dwells of the simulated ADXL345, gyro turns, offline scan."""
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.errors import InputError
-from accelcal_ros.sensor.stillness import (still_segments, StillnessDetector,
-                                           StillnessThresholds)
+from accelcal_ros.sensor.stillness import still_segments, StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 import pytest

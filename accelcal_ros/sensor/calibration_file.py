@@ -13,16 +13,22 @@ Keys (vectors in sensor axes x, y, z; readings in g, 1 g = 9.80665 m/s^2):
 * ``created``: UTC time.
 
 :func:`load_sensor_model` reads it back as a
-:class:`~accelcal_ros.calibration.model.SensorModel`; a missing, truncated or
-wrong-shaped file raises :class:`~accelcal_ros.errors.FileFormatError`.
+:class:`~accelcal_ros.sensor.model.SensorModel`; a missing, truncated or
+wrong-shaped file raises :class:`~accelcal_ros.errors.FileFormatError`, and so does a
+value outside its plausible range (:data:`PLAUSIBLE_RANGES`: a scale of 1e-300 or a
+bias of 1e300 g is a broken file, not a calibration), naming the field.
+
+The file is written by the calibration feature and read by attitude, the LiDAR
+boresight and the offline commands, so its format lives here, below them.
 """
 from dataclasses import dataclass
 import datetime
 
-from accelcal_ros.calibration.ellipsoid_fit import MODELS
-from accelcal_ros.calibration.model import SensorModel
+from typing import Optional
+
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.sensor.model import MODELS, SensorModel
 import numpy as np
 
 FORMAT = 'accelcal_ros/calibration 1'
@@ -35,12 +41,28 @@ EQUATION = (
     'pitch = atan2(-f_x, sqrt(f_y^2 + f_z^2)) (REP-103, +1 g on the axis pointing up).')
 
 
+PLAUSIBLE_RANGES = {
+    'scale': (0.2, 5.0),
+    'bias': (-2.0, 2.0),
+    'misalignment': (-0.35, 0.35),
+    'scale_std': (0.0, 10.0),
+    'bias_std': (0.0, 10.0),
+    'misalignment_std': (0.0, 10.0),
+}
+"""Closed range of every value of each vector field (scale 1, g, rad as the field's unit).
+
+A field calibration of an accelerometer has scales near 1 (the ADXL345: 0.8-1.2), biases
+below 0.2 g and misalignments below a degree; the ranges are wide around that and only
+catch files no calibration wrote."""
+PREDICTED_TILT_ERROR_RANGE_DEG = (0.0, 180.0)
+
+
 def _floats(values):
     return [float(round(v, 9)) for v in np.asarray(values, dtype=float).ravel()]
 
 
-def calibration_dict(result):
-    """Return the mapping written for a :class:`~.ellipsoid_fit.FitResult`."""
+def calibration_dict(result: object) -> dict:
+    """Return the mapping written for a fit result (calibration's ``FitResult``)."""
     sm = result.sensor_model
     return {
         'format': FORMAT,
@@ -65,7 +87,7 @@ def calibration_dict(result):
     }
 
 
-def save_calibration(path, result):
+def save_calibration(path: str, result: object) -> None:
     """Write the calibration of ``result`` to ``path`` atomically; the old file -> ``.bak``."""
     write_text_atomic(path, '# accelcal_ros accelerometer calibration\n'
                       + dump_yaml(calibration_dict(result)), backup=True)
@@ -84,7 +106,8 @@ class CalibrationRecord:
     data: dict
 
 
-def _vector(path, data, key, required=True, default=None):
+def _vector(path: str, data: dict, key: str, required: bool = True,
+            default: Optional[np.ndarray] = None) -> np.ndarray:
     if key not in data or data[key] is None:
         if required:
             raise FileFormatError(path, f'missing key "{key}" (a calibration file needs '
@@ -99,11 +122,17 @@ def _vector(path, data, key, required=True, default=None):
     if arr.shape != (3,):
         raise FileFormatError(path, f'"{key}" must be a list of 3 numbers, got {value!r}')
     if not np.all(np.isfinite(arr)):
-        raise FileFormatError(path, f'"{key}" contains NaN or infinity')
+        raise FileFormatError(path, f'"{key}" contains NaN or infinity: {value!r}; '
+                              'recalibrate or fix the file')
+    low, high = PLAUSIBLE_RANGES[key]
+    if np.any(arr < low) or np.any(arr > high):
+        raise FileFormatError(path, f'"{key}" = {arr.tolist()} is outside the plausible range '
+                              f'{low:g} .. {high:g} of every value; the file is broken or not '
+                              'an accelerometer calibration: recalibrate or fix the file')
     return arr
 
 
-def load_calibration(path):
+def load_calibration(path: str) -> CalibrationRecord:
     """Return the :class:`CalibrationRecord` in ``path``; FileFormatError if it is unusable."""
     data = load_yaml_mapping(path, 'calibration file')
     model = data.get('model', 'full' if 'misalignment' in data else 'diagonal')
@@ -125,6 +154,10 @@ def load_calibration(path):
     except (TypeError, ValueError):
         raise FileFormatError(path, f'"predicted_tilt_error_deg" must be a number, '
                               f'got {predicted!r}') from None
+    low, high = PREDICTED_TILT_ERROR_RANGE_DEG
+    if np.isfinite(predicted) and not low <= predicted <= high or np.isinf(predicted):
+        raise FileFormatError(path, f'"predicted_tilt_error_deg" = {predicted!r} is outside '
+                              f'{low:g} .. {high:g} deg; recalibrate or fix the file')
     return CalibrationRecord(
         sensor_model, model,
         _vector(path, data, 'scale_std', required=False, default=zeros),
@@ -133,6 +166,6 @@ def load_calibration(path):
         predicted, data)
 
 
-def load_sensor_model(path):
+def load_sensor_model(path: str) -> SensorModel:
     """Return the :class:`SensorModel` in calibration file ``path`` (FileFormatError if bad)."""
     return load_calibration(path).sensor_model

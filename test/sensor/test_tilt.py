@@ -1,17 +1,17 @@
 """Tilt estimator: angles against truth, covariance, smoothing, acceleration, pitch +-90."""
 import math
 
-from accelcal_ros.attitude.tilt import (angle_jacobian, estimate_many,
-                                        quaternion_from_roll_pitch, TiltEstimator)
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.frames import roll_pitch_from_specific_force, specific_force_from_roll_pitch
+from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
+from accelcal_ros.sensor.tilt import (angle_jacobian, estimate_many, quaternion_from_roll_pitch,
+                                      TiltEstimator)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-TRUTH = SensorModel(misalignment=(0.005, -0.004, 0.006))
+TRUTH = SensorModel(PAPER_K500_SCALE, PAPER_K500_BIAS, (0.005, -0.004, 0.006))
 
 
 @settings(max_examples=50, deadline=None)

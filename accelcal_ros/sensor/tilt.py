@@ -1,8 +1,11 @@
 r"""
 Tilt (roll and pitch) from a calibrated accelerometer, with its covariance (pure core).
 
+Shared by the ``attitude`` node and ``accelcal attitude`` (offline), so it lives here,
+below both.
+
 Input: raw readings ``a`` in g (sensor frame, x forward, y left, z up; REP-145 +1 g up
-at rest). The calibration (:class:`~accelcal_ros.calibration.model.SensorModel`) gives
+at rest). The calibration (:class:`~accelcal_ros.sensor.model.SensorModel`) gives
 the specific force ``f = T diag(1/k) (a - b)``; then (REP-103, radians)
 ``roll = atan2(f_y, f_z)``, ``pitch = atan2(-f_x, sqrt(f_y^2 + f_z^2))``
 (:func:`accelcal_ros.frames.roll_pitch_from_specific_force`; paper A eqs. 2-3 with the
@@ -29,9 +32,10 @@ rest, so the magnitude says nothing about acceleration.
 from dataclasses import dataclass
 import math
 
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import roll_pitch_from_specific_force
+from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 
 ROLL_VARIANCE_CAP = math.pi ** 2
@@ -86,7 +90,7 @@ def quaternion_from_roll_pitch(roll, pitch):
 class TiltEstimator:
     """Calibrated roll/pitch with covariance, smoothing and an acceleration flag."""
 
-    def __init__(self, sensor_model=None, noise_std_g=(0.0029, 0.0029, 0.0043),
+    def __init__(self, sensor_model=None, noise_std_g=NOISE_STD_100HZ_G,
                  tilt_std_rad=0.0, time_constant_s=0.0, accel_threshold_g=0.05,
                  max_hold_s=1.0):
         self.set_calibration(sensor_model or SensorModel.identity())

@@ -3,20 +3,22 @@ Recordings of raw accelerometer samples as CSV: ``t,ax,ay,az`` (seconds, m/s^2).
 
 The same format is read by ``accelcal calibrate``/``apply``/``attitude``, written by
 ``accelcal record`` and ``accelcal apply``, and published by the driver's ``replay``
-backend. Reading checks the header, the field count of every line (a truncated last line
-is reported with its number), numbers, finiteness and strictly increasing time.
+backend: a format the features share, so it lives below them. Reading checks the
+header, the field count of every line (a truncated last line is reported with its
+number), numbers, finiteness and strictly increasing time.
 """
 import io
+from typing import Tuple
 
-from accelcal_ros import STANDARD_GRAVITY
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
 import numpy as np
+from numpy.typing import ArrayLike
 
 CSV_HEADER = 't,ax,ay,az'
 
 
-def load_recording(path):
+def load_recording(path: str) -> Tuple[np.ndarray, np.ndarray]:
     """Return ``(t [N] s, acceleration [N, 3] m/s^2)`` from a recording CSV."""
     columns = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'), finite=True, increasing='t')
     if columns['t'].size == 0:
@@ -25,7 +27,7 @@ def load_recording(path):
     return columns['t'], accel
 
 
-def recording_text(t, accel_mps2):
+def recording_text(t: ArrayLike, accel_mps2: ArrayLike) -> str:
     """Return CSV text (header ``t,ax,ay,az``) for times in s and accelerations in m/s^2."""
     t = np.asarray(t, dtype=float).reshape(-1)
     accel = np.asarray(accel_mps2, dtype=float).reshape(-1, 3)
@@ -36,16 +38,7 @@ def recording_text(t, accel_mps2):
     return buffer.getvalue()
 
 
-def save_recording(path, t, accel_mps2):
+def save_recording(path: str, t: ArrayLike,
+                   accel_mps2: ArrayLike) -> None:
     """Write a recording CSV atomically (nothing is left half-written)."""
     write_text_atomic(path, recording_text(t, accel_mps2))
-
-
-def g_to_mps2(values_g):
-    """Convert accelerations from g to m/s^2 (1 g = 9.80665 m/s^2)."""
-    return np.asarray(values_g, dtype=float) * STANDARD_GRAVITY
-
-
-def mps2_to_g(values_mps2):
-    """Convert accelerations from m/s^2 to g."""
-    return np.asarray(values_mps2, dtype=float) / STANDARD_GRAVITY

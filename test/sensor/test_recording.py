@@ -1,7 +1,7 @@
 """Replay recordings: round trip, timing, and malformed or truncated files."""
-from accelcal_ros.driver.replay import load_recording, save_recording
 from accelcal_ros.driver.sources import ReplaySource
 from accelcal_ros.errors import FileFormatError
+from accelcal_ros.sensor.recording import load_recording, save_recording
 import numpy as np
 import pytest
 

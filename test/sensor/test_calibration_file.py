@@ -1,12 +1,12 @@
 """Calibration YAML: round trip, atomic write with backup, bad files."""
 import os
 
-from accelcal_ros.calibration.calibration_file import (load_calibration, load_sensor_model,
-                                                       save_calibration)
 from accelcal_ros.calibration.coverage import recommended_directions
 from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid
-from accelcal_ros.calibration.model import SensorModel
 from accelcal_ros.errors import FileFormatError
+from accelcal_ros.sensor.calibration_file import (load_calibration, load_sensor_model,
+                                                  save_calibration)
+from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
 import numpy as np
 import pytest
 import yaml
@@ -14,7 +14,7 @@ import yaml
 
 @pytest.fixture
 def result():
-    truth = SensorModel(misalignment=(0.004, -0.002, 0.003))
+    truth = SensorModel(PAPER_K500_SCALE, PAPER_K500_BIAS, (0.004, -0.002, 0.003))
     raw = truth.distort(recommended_directions(14))
     raw += np.random.default_rng(0).normal(0.0, 3e-4, raw.shape)
     return fit_ellipsoid(raw, np.full((14, 3), 3e-4))
@@ -61,7 +61,18 @@ def test_previous_file_kept_as_backup(tmp_path, result):
     ('model: full\nscale: [0.9, 0.9, 0.9]\n', 'missing key "bias"'),
     ('model: full\nscale: [0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" must be a list of 3'),
     ('model: full\nscale: [0.9, 0.9, .nan]\nbias: [0, 0, 0]\n', 'NaN'),
-    ('model: full\nscale: [0.9, -0.9, 0.9]\nbias: [0, 0, 0]\n', 'positive'),
+    ('model: full\nscale: [0.9, -0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: full\nscale: [1e-300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: full\nscale: [1e300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 1e300, 0]\n', '"bias" .* outside'),
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nmisalignment: [0, 2, 0]\n',
+     '"misalignment" .* outside'),
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nbias_std: [.nan, 0, 0]\n',
+     '"bias_std" contains NaN'),
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: -1\n',
+     '"predicted_tilt_error_deg" .* outside'),
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: .inf\n',
+     '"predicted_tilt_error_deg" .* outside'),
     ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [a, b, c]\n', '"bias" must be'),
     ('model: cubic\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n', 'one of'),
     ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [0.1, 0.2', 'not valid YAML'),
