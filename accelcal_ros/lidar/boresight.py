@@ -17,226 +17,33 @@ direction). On the simulated protocol equal weights are better (0.009 vs 0.026 d
 per-position normal errors (~0.03 deg) are dominated by systematic effects (wall and
 furniture points near the floor inside the inlier band) that the noise model ignores.
 
-Uncertainty: with ``R_true = exp([dtheta]x) R``, ``cov(dtheta) = (sum w_i [f_i]x^T
-[f_i]x)^-1`` (Shuster's QUEST covariance) scaled by the a-posteriori variance factor;
-the roll/pitch/yaw standard deviations follow by linearisation. The positions constrain
-all three angles only when the gravity directions are not all (anti)parallel: a small
-eigenvalue of ``sum (I - f f^T)`` gives a warning naming the unconstrained axis.
+Uncertainty (:mod:`.wahba`): the information matrix ``sum w_i (I - f_i f_i^T)`` of the
+small rotation, the residual-based noise estimate and a Student-t small-sample factor; the
+roll/pitch/yaw standard deviations follow by linearisation. When all gravity directions are
+(within 1 deg) parallel the rotation about them is undetermined and the calibration is
+refused (:class:`.wahba.UnconstrainedBoresightError`); a spread under ~10 deg warns.
+
+Without a prior the floor of each position is chosen by :mod:`.floor_assign`, which refuses
+(:class:`.floor_assign.AmbiguousFloorError`) when several plane assignments fit.
 
 Validation as in paper B (Fig. 10): the angle between ``R n_i`` and ``f_i`` per position,
 and a hold-out: fit on the even positions and test on the odd ones, and vice versa.
 """
 from dataclasses import dataclass, field
-from itertools import combinations
 from typing import List
 
 from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list, rpy_radians_from_rotation
+from accelcal_ros.lidar.floor_assign import (AmbiguousFloorError, PlaneSet,  # noqa: F401
+                                             select_floor)
 from accelcal_ros.lidar.plane_fit import find_floor, find_planes, FloorSearch
+from accelcal_ros.lidar.wahba import (_unit, check_constrained,  # noqa: F401
+                                      constraint_eigen, holdout,
+                                      MIN_CONSTRAINT_EIGENVALUE, observability_warnings,
+                                      pair_errors_deg, rotation_angle_deg,
+                                      rotation_covariance, rpy_std_deg, solve_wahba,
+                                      UnconstrainedBoresightError)
 import numpy as np
-from scipy.spatial.transform import Rotation
-
-MIN_CONSTRAINT_EIGENVALUE = 0.03
-"""Smallest eigenvalue of mean(I - f f^T) below which an axis is reported unconstrained
-(about 10 deg of spread of the gravity directions around that axis)."""
-
-
-def _unit(v):
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def solve_wahba(normals, gravity, weights=None):
-    """
-    Return the rotation ``R`` (3x3, LiDAR -> IMU) minimising ``sum w |f - R n|^2``.
-
-    ``normals`` (N, 3) in the LiDAR frame, ``gravity`` (N, 3) in the IMU frame (any
-    length; only directions are used). Needs two non-parallel pairs.
-    """
-    n = _unit(np.asarray(normals, dtype=float).reshape(-1, 3))
-    f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
-    if len(n) != len(f) or len(n) < 2:
-        raise CalibrationError(f'need at least 2 vector pairs, got {len(n)} normals and '
-                               f'{len(f)} gravity vectors')
-    w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=float)
-    if np.any(~np.isfinite(n)) or np.any(~np.isfinite(f)) or np.any(w < 0):
-        raise InputError('vector pairs contain NaN, zero vectors or negative weights')
-    b = (w[:, None, None] * f[:, :, None] * n[:, None, :]).sum(axis=0)
-    u, _, vt = np.linalg.svd(b)
-    sign = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
-    return u @ np.diag([1.0, 1.0, sign]) @ vt
-
-
-def pair_errors_deg(rotation, normals, gravity):
-    """Return per-pair angles (deg) between ``R n_i`` and ``f_i`` (paper B Fig. 10)."""
-    rn = _unit(np.asarray(normals, dtype=float).reshape(-1, 3)) @ np.asarray(rotation).T
-    f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
-    sin = np.linalg.norm(np.cross(rn, f), axis=1)
-    return np.degrees(np.arctan2(sin, np.einsum('ij,ij->i', rn, f)))
-
-
-def constraint_eigen(gravity):
-    """Return eigenvalues (ascending) and eigenvectors of ``mean(I - f f^T)``."""
-    f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
-    m = np.eye(3) - np.einsum('ij,ik->jk', f, f) / len(f)
-    return np.linalg.eigh(m)
-
-
-def observability_warnings(gravity, threshold=MIN_CONSTRAINT_EIGENVALUE):
-    """Return warnings when the gravity directions leave an angle unconstrained."""
-    values, vectors = constraint_eigen(gravity)
-    if values[0] >= threshold:
-        return []
-    axis = vectors[:, 0] * np.sign(vectors[np.argmax(np.abs(vectors[:, 0])), 0])
-    spread = np.degrees(np.arcsin(np.sqrt(min(1.0, 2 * max(values[0], 0.0)))))
-    return [f'the positions do not constrain the rotation about the IMU axis '
-            f'[{axis[0]:.2f}, {axis[1]:.2f}, {axis[2]:.2f}] (gravity directions spread only '
-            f'~{spread:.1f} deg around it): add positions tilted about another axis']
-
-
-def rotation_covariance(rotation, normals, gravity, weights=None):
-    """
-    Return ``(cov, sigma0_sq)``: covariance (rad^2) of the small rotation vector (IMU frame).
-
-    ``weights`` are ``1 / sigma_i^2`` (rad^-2) when known; the covariance is scaled by the
-    a-posteriori variance factor ``sigma0^2 = sum w r^2 / (2N - 3)`` (1 when N < 3).
-    """
-    f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
-    rn = _unit(np.asarray(normals, dtype=float).reshape(-1, 3)) @ np.asarray(rotation).T
-    w = np.ones(len(f)) if weights is None else np.asarray(weights, dtype=float)
-    info = sum(wi * (np.eye(3) - np.outer(fi, fi)) for wi, fi in zip(w, f))
-    resid2 = np.sum((f - rn) ** 2, axis=1)
-    dof = 2 * len(f) - 3
-    sigma0_sq = float(np.sum(w * resid2) / dof) if dof > 0 else 1.0
-    try:
-        cov = np.linalg.inv(info)
-    except np.linalg.LinAlgError:
-        cov = np.full((3, 3), np.inf)
-    return cov * sigma0_sq, sigma0_sq
-
-
-def rpy_std_deg(rotation, cov):
-    """Return roll/pitch/yaw standard deviations (deg) from a rotation-vector covariance."""
-    base = np.array(rpy_radians_from_rotation(rotation))
-    jac = np.zeros((3, 3))
-    eps = 1e-6
-    for k in range(3):
-        delta = np.zeros(3)
-        delta[k] = eps
-        moved = Rotation.from_rotvec(delta).as_matrix() @ rotation
-        diff = np.array(rpy_radians_from_rotation(moved)) - base
-        jac[:, k] = (diff + np.pi) % (2 * np.pi) - np.pi
-    jac /= eps
-    var = np.diag(jac @ cov @ jac.T)
-    return np.degrees(np.sqrt(np.maximum(var, 0.0)))
-
-
-def rotation_angle_deg(r1, r2):
-    """Return the angle (deg) of the rotation ``r1 r2^T``."""
-    rel = np.asarray(r1) @ np.asarray(r2).T
-    u, _, vt = np.linalg.svd(rel)
-    return float(np.degrees(Rotation.from_matrix(u @ vt).magnitude()))
-
-
-def holdout(normals, gravity, weights=None):
-    """
-    Paper B's hold-out: fit on even positions, test on odd ones and vice versa.
-
-    Returns a dict with each position's error (deg) under the fit that excluded it,
-    their mean and max, the two half-fit means and the angle between the two half fits
-    (None entries when a half cannot determine a rotation).
-    """
-    n = np.asarray(normals, dtype=float).reshape(-1, 3)
-    f = np.asarray(gravity, dtype=float).reshape(-1, 3)
-    w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=float)
-    idx = np.arange(len(n))
-    per = np.full(len(n), np.nan)
-    fits = {}
-    for name, fit_mask in (('even', idx % 2 == 0), ('odd', idx % 2 == 1)):
-        if fit_mask.sum() < 2 or constraint_eigen(f[fit_mask])[0][0] < MIN_CONSTRAINT_EIGENVALUE:
-            continue
-        r = solve_wahba(n[fit_mask], f[fit_mask], w[fit_mask])
-        fits[name] = r
-        test = ~fit_mask
-        per[test] = pair_errors_deg(r, n[test], f[test])
-    result = {'per_position': [None if np.isnan(v) else float(v) for v in per]}
-    ok = per[~np.isnan(per)]
-    result['mean'] = float(ok.mean()) if ok.size else None
-    result['max'] = float(ok.max()) if ok.size else None
-    result['fit_even_test_odd_mean'] = (float(np.nanmean(per[idx % 2 == 1]))
-                                        if 'even' in fits and (idx % 2 == 1).any() else None)
-    result['fit_odd_test_even_mean'] = (float(np.nanmean(per[idx % 2 == 0]))
-                                        if 'odd' in fits else None)
-    result['even_vs_odd_rotation'] = (rotation_angle_deg(fits['even'], fits['odd'])
-                                      if len(fits) == 2 else None)
-    return result
-
-
-def assign_floors(candidates, gravity, tolerance_deg=3.0, max_pairs=60, seed=0):
-    """
-    Pick per position the plane consistent with one rotation across all positions.
-
-    ``candidates[i]`` is an (k_i, 3) array of plane normals (oriented towards the scanner)
-    at position ``i``; ``gravity[i]`` the specific force there. Hypotheses ``R`` come from
-    two positions and one candidate each (rotations keep the angle between the pair, a
-    cheap pre-filter); each is scored MSAC-style over all positions. Returns
-    ``(R, choice)`` with ``choice[i]`` the chosen candidate index or -1.
-    """
-    f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
-    cands = [np.asarray(c, dtype=float).reshape(-1, 3) for c in candidates]
-    owners = np.concatenate([np.full(len(c), i) for i, c in enumerate(cands)]).astype(int)
-    if owners.size == 0:
-        raise CalibrationError('no plane found at any position')
-    stacked = _unit(np.concatenate(cands))
-    tol = np.radians(tolerance_deg)
-    pairs = []
-    for i, j in combinations(range(len(cands)), 2):
-        angle = np.arccos(np.clip(f[i] @ f[j], -1.0, 1.0))
-        if np.radians(15) < angle < np.radians(165) and len(cands[i]) and len(cands[j]):
-            pairs.append((i, j, angle))
-    if not pairs:
-        raise CalibrationError('the gravity directions of the positions are all parallel: '
-                               'the floor cannot be identified without --prior-rpy-deg')
-    rng = np.random.default_rng(seed)
-    if len(pairs) > max_pairs:
-        pairs = [pairs[k] for k in rng.choice(len(pairs), max_pairs, replace=False)]
-    best = None
-    counts = np.bincount(owners, minlength=len(cands))
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    has = counts > 0
-    for i, j, angle in pairs:
-        for a in cands[i]:
-            for b in cands[j]:
-                ab = np.arccos(np.clip(_unit(a) @ _unit(b), -1.0, 1.0))
-                if abs(ab - angle) > 2 * tol:
-                    continue
-                r = solve_wahba([a, b], [f[i], f[j]])
-                err = np.arccos(np.clip(np.einsum('ij,ij->i', stacked @ r.T, f[owners]),
-                                        -1.0, 1.0))
-                per = np.full(len(cands), np.pi)
-                per[has] = np.minimum.reduceat(err, starts[has])
-                cost = float(np.minimum(per ** 2, tol ** 2).sum())
-                if best is None or cost < best[0]:
-                    best = (cost, r)
-    if best is None:
-        raise CalibrationError('no pair of planes is consistent with the gravity directions')
-    r = best[1]
-    choice = np.full(len(cands), -1)
-    normals, grav = [], []
-    for k in range(2):
-        for i, c in enumerate(cands):
-            if not len(c):
-                continue
-            err = pair_errors_deg(r, c, np.repeat(f[i:i + 1], len(c), axis=0))
-            m = int(np.argmin(err))
-            if err[m] <= tolerance_deg * (1 if k else 1.5):
-                choice[i] = m
-        sel = np.flatnonzero(choice >= 0)
-        if len(sel) >= 2:
-            normals = [cands[i][choice[i]] for i in sel]
-            grav = [f[i] for i in sel]
-            r = solve_wahba(normals, grav)
-    return r, choice
 
 
 @dataclass
@@ -295,14 +102,18 @@ class BoresightResult:
 
 
 def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
-                        tolerance_deg=3.0, max_pair_error_deg=2.0):
+                        tolerance_deg=3.0, max_pair_error_deg=2.0,
+                        height_tolerance_m=0.3) -> 'BoresightResult':
     """
     Calibrate the boresight from :class:`StaticPosition` list; returns BoresightResult.
 
     ``prior`` (3x3, LiDAR -> IMU, the nominal mounting) guides the floor search (ceiling
     removal and gravity-guided MSAC). Without it every position's dominant planes are
-    candidates and :func:`assign_floors` picks the floor consistent with one rotation; the
-    floors are then searched again with that rotation as the prior. A position without a
+    candidates and :func:`accelcal_ros.lidar.floor_assign.select_floor` picks the floor
+    consistent with one rotation (refusing when several assignments fit; floors more than
+    ``height_tolerance_m`` apart rule an assignment out); the floors are then searched again
+    with that rotation as the prior. Positions whose gravity directions leave an angle
+    undetermined are refused (:class:`UnconstrainedBoresightError`). A position without a
     usable floor, or whose pair disagrees with the others by more than
     ``max_pair_error_deg`` after a first solution, is dropped with the reason.
     """
@@ -310,6 +121,7 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
     if weighting not in ('noise', 'equal'):
         raise InputError(f'weighting must be noise or equal, got {weighting!r}')
     dropped = {}
+    notes = []
     valid = []
     for pos in positions:
         g = np.asarray(pos.gravity_m_s2, dtype=float)
@@ -325,12 +137,11 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
     if prior is None:
         if len(valid) < 2:
             raise CalibrationError(_too_few(valid, dropped))
-        cands = []
-        for pos, pts in valid:
-            planes = find_planes(pts, search)
-            cands.append(np.array([p.normal for p in planes]).reshape(-1, 3))
-        prior, choice = assign_floors(cands, [p.gravity_m_s2 for p, _ in valid],
-                                      tolerance_deg)
+        check_constrained([p.gravity_m_s2 for p, _ in valid], [p.name for p, _ in valid])
+        cands = [PlaneSet.from_planes(find_planes(pts, search)) for _, pts in valid]
+        prior, choice, notes = select_floor(cands, [p.gravity_m_s2 for p, _ in valid],
+                                            tolerance_deg, height_tolerance_m,
+                                            max_tilt_deg=search.max_tilt_deg)
         for (pos, _), c in zip(valid, choice):
             if c < 0:
                 dropped[pos.name] = ('no plane consistent with the rotation found at the '
@@ -370,7 +181,8 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
         inliers = [v for v, k in zip(inliers, keep) if k]
         r = solve_wahba(normals, gravity, weights)
         errors = pair_errors_deg(r, normals, gravity)
-    warn = observability_warnings(gravity)
+    check_constrained(gravity, names)
+    warn = observability_warnings(gravity) + notes
     cov, _ = rotation_covariance(r, normals, gravity, weights)
     rpy = np.degrees(rpy_radians_from_rotation(r))
     return BoresightResult(r, rpy, rpy_std_deg(r, cov), cov, names, normals, gravity,

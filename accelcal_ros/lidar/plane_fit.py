@@ -228,7 +228,7 @@ def find_floor(points, search=None, up=None):
     Return the floor :class:`Plane` in a LiDAR cloud, or raise GeometryError with why not.
 
     Without ``up``: the plane with the best MSAC score among the candidates. Use
-    :func:`find_planes` plus :func:`accelcal_ros.lidar.boresight.assign_floors` when no
+    :func:`find_planes` plus :func:`accelcal_ros.lidar.floor_assign.select_floor` when no
     prior is known (it picks per position the plane consistent with one rotation).
     """
     search = search or FloorSearch()

@@ -13,7 +13,7 @@ boxes (furniture, pillars); rays are intersected exactly (slab method).
 Rig: ``boresight`` maps LiDAR vectors into the IMU frame (``v_imu = R v_lidar``),
 ``lever_arm_m`` is the LiDAR origin in the IMU frame. The IMU reads the specific force
 ``f = C^T [0, 0, g]`` (REP-145) distorted by an optional
-:class:`~accelcal_ros.calibration.model.SensorModel` (in g) plus white noise, and the
+:class:`~accelcal_ros.sensor.model.SensorModel` (in g) plus white noise, and the
 gyro angular rate plus noise.
 
 Paper B's protocol: 15 static positions, the scanner tilted about its X axis by
@@ -28,7 +28,7 @@ from accelcal_ros.frames import rot_x, rot_y, rotation_from_rpy_radians
 from accelcal_ros.lidar.cloud import make_cloud
 from accelcal_ros.lidar.imu_log import ImuLog
 from accelcal_ros.lidar.poses import PoseStream
-from accelcal_ros.lidar.static_segments import STANDARD_GRAVITY_M_S2
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -173,14 +173,42 @@ def simulate_imu_static(rotation_world_imu, duration_s, rate_hz, rng, model=None
     return ImuLog(t, accel, gyro), f_true
 
 
+def box_room(size_m=(8.0, 8.0, 8.0), corner_m=(-4.0, -4.0)):
+    """
+    Return an empty box-shaped room (m): ceiling and walls as large as the floor.
+
+    In such a room, plane assignments other than the floor fit the boresight as well
+    (:mod:`accelcal_ros.lidar.floor_assign`).
+    """
+    sx, sy, sz = (float(v) for v in size_m)
+    x0, y0 = (float(v) for v in corner_m)
+    return Room((x0, x0 + sx), (y0, y0 + sy), sz, [])
+
+
+def tilt_rotation(a_deg, b_deg, order='xy'):
+    """
+    Return the scanner's orientation (LiDAR -> world) at tilt ``(a, b)`` deg.
+
+    ``order='xy'``: ``Rx(a) Ry(b)`` (tilt about X composed first, paper B as simulated so
+    far); ``'yx'``: ``Ry(b) Rx(a)``.
+    """
+    rx, ry = rot_x(np.radians(a_deg)), rot_y(np.radians(b_deg))
+    if order == 'xy':
+        return rx @ ry
+    if order == 'yx':
+        return ry @ rx
+    raise ValueError(f"order must be 'xy' or 'yx', got {order!r}")
+
+
 def simulate_protocol(boresight, tilts_deg=None, room=None, scanner=None, seed=0,
                       scanner_origin=(0.0, 0.0, 1.2), imu_model=None, still_s=10.0,
-                      imu_rate_hz=200.0, revolutions=1):
+                      imu_rate_hz=200.0, revolutions=1, order='xy'):
     """
     Simulate paper B's static protocol; returns a list of :class:`ProtocolPosition`.
 
-    At tilt ``(a, b)`` the scanner's orientation is ``Rx(a) Ry(b)`` (LiDAR -> world)
-    about its own origin at ``scanner_origin``; the IMU's is ``Rx(a) Ry(b) R^T``.
+    At tilt ``(a, b)`` the scanner's orientation is :func:`tilt_rotation` (``Rx(a) Ry(b)``
+    for ``order='xy'``, LiDAR -> world) about its own origin at ``scanner_origin``; the
+    IMU's is that times ``R^T``.
     """
     room = room or Room()
     scanner = scanner or Vlp16()
@@ -188,7 +216,7 @@ def simulate_protocol(boresight, tilts_deg=None, room=None, scanner=None, seed=0
     boresight = np.asarray(boresight, dtype=float)
     out = []
     for k, (a, b) in enumerate(tilts_deg or paper_protocol_tilts_deg()):
-        r_wl = rot_x(np.radians(a)) @ rot_y(np.radians(b))
+        r_wl = tilt_rotation(a, b, order)
         cloud, _ = scan_static(room, scanner, r_wl, scanner_origin, revolutions, rng)
         imu, f_true = simulate_imu_static(r_wl @ boresight.T, still_s, imu_rate_hz, rng,
                                           imu_model)
