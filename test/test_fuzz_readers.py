@@ -1,0 +1,303 @@
+"""
+Bounded fuzz test of every file reader: a damaged file parses or raises an AccelcalError.
+
+Each reader gets a valid file written by the package's own writer (checked to load), then
+``CASES`` mutations of it drawn with a fixed seed: bytes flipped, inserted or deleted,
+truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN / infinity / text /
+nothing, lines deleted, duplicated or swapped, header counts changed, an empty file. Any
+other exception (or a hang) fails the test, which prints how to reproduce each case.
+
+``ACCELCAL_FUZZ_CASES=N`` runs N cases per reader (default 150) to hunt further; running
+this file as a script prints the time per reader.
+"""
+import importlib
+import os
+import random
+import re
+import time
+import warnings
+
+from accelcal_ros.errors import AccelcalError
+import numpy as np
+import pytest
+
+CASES = int(os.environ.get('ACCELCAL_FUZZ_CASES', '150'))
+SEED = 20261123
+_NUMBER = re.compile(rb'-?\d+(\.\d+)?(e-?\d+)?')
+_REPLACEMENTS = [b'1e999', b'-1e999', b'1e308', b'-1e308', b'1e-320', b'99999999999999999999',
+                 b'-1', b'0', b'nan', b'NaN', b'inf', b'-inf', b'.nan', b'.inf', b'abc', b'',
+                 b'\xff\xfe', b'0x10', b'1,2', b'[1, 2]', b'{a: 1}', b'4294967297', b'-0']
+
+
+def _function(*candidates):
+    """Return the first importable ``module:function`` of ``candidates`` (modules move)."""
+    for spec in candidates:
+        module, name = spec.split(':')
+        try:
+            return getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError):
+            continue
+    raise ImportError(f'none of {candidates} found')
+
+
+# ---------------------------------------------------------------------------------------
+# valid files, one per reader
+
+
+def _write_recording(path):
+    save = _function('accelcal_ros.sensor.recording:save_recording',
+                     'accelcal_ros.driver.replay:save_recording')
+    t = np.arange(12) * 0.01
+    save(path, t, np.tile([0.1, -0.2, 9.81], (12, 1)))
+
+
+def _write_calibration(path):
+    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+
+    write_text_atomic(path, dump_yaml({
+        'model': 'full', 'scale': [1.01, 0.99, 1.002], 'bias': [0.01, -0.02, 0.003],
+        'misalignment': [0.001, -0.002, 0.0005], 'scale_std': [0.001, 0.001, 0.001],
+        'bias_std': [0.001, 0.001, 0.001], 'misalignment_std': [1e-4, 1e-4, 1e-4],
+        'residual_rms_g': 0.001, 'positions': 12, 'predicted_tilt_error_deg': 0.05}))
+
+
+def _write_rig(path):
+    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+
+    k = [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]
+    eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    yaw = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    write_text_atomic(path, dump_yaml({'cameras': [
+        {'name': 'cam0', 'width': 640, 'height': 480, 'K': k, 'D': [0.01, -0.02, 0, 0, 0],
+         'R': eye},
+        {'name': 'cam1', 'width': 640, 'height': 480, 'K': k, 'D': [0, 0, 0, 0, 0],
+         'R': yaw}]}))
+
+
+def _write_camera_info(path):
+    from accelcal_ros.fileio import write_text_atomic
+
+    write_text_atomic(path, (
+        'image_width: 640\nimage_height: 480\ncamera_name: cam0\n'
+        'camera_matrix:\n  rows: 3\n  cols: 3\n  data: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n'
+        'distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n'
+        '  data: [0.01, -0.02, 0, 0, 0]\n'))
+
+
+def _write_boresight(path):
+    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+
+    write_text_atomic(path, dump_yaml({'rpy_deg': [1.5, -0.5, 90.0],
+                                       'rpy_std_deg': [0.01, 0.01, 0.02]}))
+
+
+def _write_poses(path):
+    from accelcal_ros.lidar.poses import PoseStream, write_poses_csv
+
+    t = np.arange(8) * 0.1
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (8, 1))
+    write_poses_csv(path, PoseStream(t, np.column_stack([t, t * 0, t * 0]), quat))
+
+
+def _write_imu(path):
+    from accelcal_ros.lidar.imu_log import ImuLog, write_imu_csv
+
+    t = np.arange(10) * 0.005
+    write_imu_csv(path, ImuLog(t, np.tile([0.0, 0.1, 9.8], (10, 1)),
+                               np.tile([0.001, 0.0, -0.001], (10, 1))))
+
+
+def _cloud():
+    from accelcal_ros.lidar.cloud import make_cloud
+
+    rng = np.random.default_rng(1)
+    return make_cloud(rng.normal(size=(40, 3)), rng.uniform(0, 100, 40), np.arange(40) % 16,
+                      np.linspace(0, 0.1, 40))
+
+
+def _pcd_writer(data):
+    def write(path):
+        from accelcal_ros.lidar.pcd import write_pcd
+
+        write_pcd(path, _cloud(), data)
+    return write
+
+
+def _ply_writer(binary):
+    def write(path):
+        from accelcal_ros.lidar.ply import write_ply
+
+        write_ply(path, _cloud(), binary)
+    return write
+
+
+def _read_camera_info(path):
+    from accelcal_ros.camera.model import camera_model_from_mapping
+    from accelcal_ros.fileio import load_yaml_mapping
+
+    data = load_yaml_mapping(path, 'camera_info file')
+    for key in ('camera_matrix', 'distortion_coefficients'):
+        if isinstance(data.get(key), dict) and 'data' in data[key]:
+            data[key] = data[key]['data']
+    return camera_model_from_mapping(data, str(path))
+
+
+def _read_pcd(path):
+    from accelcal_ros.lidar.pcd import read_pcd
+
+    return read_pcd(path)
+
+
+def _read_ply(path):
+    from accelcal_ros.lidar.ply import read_ply
+
+    return read_ply(path)
+
+
+READERS = {
+    'recording_csv': ('rec.csv', _write_recording, lambda p: _function(
+        'accelcal_ros.sensor.recording:load_recording',
+        'accelcal_ros.driver.replay:load_recording')(p)),
+    'calibration_yaml': ('calib.yaml', _write_calibration, lambda p: _function(
+        'accelcal_ros.sensor.calibration_file:load_calibration',
+        'accelcal_ros.calibration.calibration_file:load_calibration')(p)),
+    'rig_yaml': ('rig.yaml', _write_rig,
+                 lambda p: _function('accelcal_ros.panorama.rig:load_rig')(p)),
+    'camera_info_yaml': ('cam.yaml', _write_camera_info, _read_camera_info),
+    'boresight_yaml': ('bs.yaml', _write_boresight,
+                       lambda p: _function('accelcal_ros.lidar.boresight:load_boresight')(p)),
+    'poses_csv': ('poses.csv', _write_poses,
+                  lambda p: _function('accelcal_ros.lidar.poses:read_poses_csv')(p)),
+    'imu_log_csv': ('imu.csv', _write_imu,
+                    lambda p: _function('accelcal_ros.lidar.imu_log:read_imu_csv')(p)),
+    'pcd_ascii': ('a.pcd', _pcd_writer('ascii'), _read_pcd),
+    'pcd_binary': ('b.pcd', _pcd_writer('binary'), _read_pcd),
+    'pcd_binary_compressed': ('c.pcd', _pcd_writer('binary_compressed'), _read_pcd),
+    'ply_ascii': ('a.ply', _ply_writer(False), _read_ply),
+    'ply_binary': ('b.ply', _ply_writer(True), _read_ply),
+}
+
+
+# ---------------------------------------------------------------------------------------
+# mutations
+
+
+def _header_end(data):
+    for marker in (b'end_header\n', b'\nDATA '):
+        at = data.find(marker)
+        if at >= 0:
+            return data.find(b'\n', at + 1) + 1 if marker != b'end_header\n' else \
+                at + len(marker)
+    return len(data)
+
+
+def mutate(data, rng):
+    """Return ``(damaged bytes, description)`` of one random mutation of ``data``."""
+    n = len(data)
+    kind = rng.choice(['flip', 'flip_header', 'truncate', 'non_utf8', 'number', 'number',
+                       'number_header', 'delete_line', 'duplicate_line', 'swap_lines',
+                       'insert_bytes', 'delete_bytes', 'empty', 'append', 'several'])
+    if kind == 'several':
+        for _ in range(rng.randint(2, 4)):
+            data, _ = mutate(data, rng)
+        return data, 'several mutations'
+    if kind == 'empty' or not n:
+        return b'', 'empty file'
+    if kind in ('flip', 'flip_header'):
+        out = bytearray(data)
+        limit = max(1, _header_end(data)) if kind == 'flip_header' else n
+        for _ in range(rng.randint(1, 8)):
+            k = rng.randrange(limit)
+            out[k] = rng.randrange(256)
+        return bytes(out), f'{kind}'
+    if kind == 'truncate':
+        k = rng.randrange(n)
+        return data[:k], f'truncated at byte {k} of {n}'
+    if kind == 'non_utf8':
+        k = rng.randrange(n + 1)
+        junk = rng.choice([b'\xff', b'\xfe\xff', b'\x80\x81', b'\xc3', b'\xed\xa0\x80', b'\x00'])
+        return data[:k] + junk + data[k:], f'{junk!r} inserted at byte {k}'
+    if kind in ('number', 'number_header'):
+        region = data[:_header_end(data)] if kind == 'number_header' else data
+        matches = list(_NUMBER.finditer(region))
+        if not matches:
+            return data + b'\n1e999\n', 'number appended'
+        match = rng.choice(matches)
+        new = rng.choice(_REPLACEMENTS)
+        return data[:match.start()] + new + data[match.end():], \
+            f'number {match.group()!r} at byte {match.start()} -> {new!r}'
+    lines = data.split(b'\n')
+    if kind == 'delete_line' and len(lines) > 1:
+        k = rng.randrange(len(lines))
+        return b'\n'.join(lines[:k] + lines[k + 1:]), f'line {k + 1} deleted'
+    if kind == 'duplicate_line':
+        k = rng.randrange(len(lines))
+        return b'\n'.join(lines[:k + 1] + lines[k:]), f'line {k + 1} duplicated'
+    if kind == 'swap_lines' and len(lines) > 2:
+        i, j = sorted(rng.sample(range(len(lines)), 2))
+        lines[i], lines[j] = lines[j], lines[i]
+        return b'\n'.join(lines), f'lines {i + 1} and {j + 1} swapped'
+    if kind == 'insert_bytes':
+        k = rng.randrange(n + 1)
+        junk = bytes(rng.randrange(256) for _ in range(rng.randint(1, 16)))
+        return data[:k] + junk + data[k:], f'{len(junk)} random bytes inserted at {k}'
+    if kind == 'delete_bytes':
+        k = rng.randrange(n)
+        m = rng.randint(1, 32)
+        return data[:k] + data[k + m:], f'{m} bytes deleted at {k}'
+    return data + bytes(rng.randrange(256) for _ in range(20)), 'garbage appended'
+
+
+def run_reader(name, folder, cases=CASES):
+    """Fuzz one reader; return ``(failures, seconds)`` (failures: reproducer lines)."""
+    filename, write, read = READERS[name]
+    path = os.path.join(folder, filename)
+    write(path)
+    read(path)  # the undamaged file must load, or the fuzzing means nothing
+    with open(path, 'rb') as handle:
+        valid = handle.read()
+    rng = random.Random(f'{SEED}-{name}')
+    failures = []
+    start = time.perf_counter()
+    for case in range(cases):
+        damaged, what = mutate(valid, rng)
+        with open(path, 'wb') as handle:
+            handle.write(damaged)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore', RuntimeWarning)  # e.g. NaN cast to int
+                read(path)
+        except AccelcalError:
+            pass
+        except Exception as exc:  # noqa: B902 - what the test hunts
+            failures.append(f'{name} case {case} ({what}): {type(exc).__name__}: {exc}\n'
+                            f'    file bytes: {damaged[:400]!r}'
+                            + (' ...' if len(damaged) > 400 else ''))
+    return failures, time.perf_counter() - start
+
+
+@pytest.mark.parametrize('name', sorted(READERS))
+def test_damaged_files_parse_or_raise_accelcal_error(tmp_path, name):
+    """CASES seeded mutations of a valid file: each parses or raises an AccelcalError."""
+    failures, _ = run_reader(name, str(tmp_path))
+    assert not failures, (f'{len(failures)} of {CASES} damaged files raised something '
+                          'other than AccelcalError:\n' + '\n'.join(failures[:10]))
+
+
+def main():
+    """Print cases and time per reader (``python test/test_fuzz_readers.py``)."""
+    import tempfile
+
+    total = 0.0
+    with tempfile.TemporaryDirectory() as folder:
+        for name in sorted(READERS):
+            failures, seconds = run_reader(name, folder)
+            total += seconds
+            print(f'{name:24} {CASES:5d} cases {seconds:7.2f} s  {len(failures)} failures')
+            for line in failures[:3]:
+                print('   ', line)
+    print(f'{"all readers":24} {CASES * len(READERS):5d} cases {total:7.2f} s')
+
+
+if __name__ == '__main__':
+    main()
