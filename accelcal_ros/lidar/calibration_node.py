@@ -219,4 +219,4 @@ class LidarCalibrationNode(Node):
 
 def main(args=None):
     """Run the ``lidar_calibration`` node."""
-    return run(LidarCalibrationNode, args)
+    return run(LidarCalibrationNode, args, executor='events')

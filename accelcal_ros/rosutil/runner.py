@@ -1,46 +1,227 @@
 """
-Start-up and shutdown of a node process: ``main()`` of every executable calls :func:`run`.
+Start-up, executor and shutdown of a node process (``main()`` of every executable: :func:`run`).
+
+Executor: ``events`` (rclpy's ``rclpy.experimental.EventsExecutor``: about half the CPU
+per message of the standard executors; falls back to ``single`` where rclpy lacks it),
+``single`` (``SingleThreadedExecutor``) or ``multi`` (``MultiThreadedExecutor``). Each
+node names its default; the environment variable ``ACCELCAL_EXECUTOR=events|single|multi``
+overrides it for every node started from that environment (no parameter: the executor
+exists before the node's parameters do).
+
+Shutdown: the runner installs its own SIGINT and SIGTERM handlers (rclpy's are not
+installed), which end the spin loop; the node's ``close()`` then stops its threads
+while the context is still valid (no ``RCLError`` from a publishing thread), and only
+then are the node and the context destroyed. Exit status 0. A second signal while
+closing stops at once.
 
 Errors a user can cause at start-up (bad parameter, missing device, unreadable file) are
-:class:`~accelcal_ros.errors.AccelcalError`: they are logged as one clear line and the
-process exits with status 1 instead of printing a traceback. Ctrl-C exits quietly.
+:class:`~accelcal_ros.errors.AccelcalError` (rclpy's parameter exceptions are turned
+into one): they are logged as one FATAL line through the node's logger (so they also
+reach ``/rosout``), or through a logger named after the executable when the node does not
+exist yet, and the process exits with status 1 instead of printing a traceback.
 """
+import os
+import signal
 import sys
+import time
+import traceback
+from typing import Callable, Optional, Sequence
 
 from accelcal_ros.errors import AccelcalError
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import (ExternalShutdownException, MultiThreadedExecutor,
                              SingleThreadedExecutor)
+from rclpy.node import Node
+from rclpy.task import Future
+
+EXECUTOR_ENV = 'ACCELCAL_EXECUTOR'
+"""Environment variable that overrides every node's default executor."""
+
+EXECUTORS = ('events', 'single', 'multi')
+
+_SPIN_TIMEOUT_S = 0.1
+"""Longest time between two checks of the stop flag (the signal handlers set it)."""
 
 
-def run(node_factory, args=None, threads=2):
+def executor_kind(default: str, environ: Optional[dict] = None) -> str:
+    """Return the executor to use: ``$ACCELCAL_EXECUTOR`` if set, else ``default``."""
+    value = (os.environ if environ is None else environ).get(EXECUTOR_ENV, '').strip().lower()
+    if not value:
+        return default
+    if value not in EXECUTORS:
+        raise AccelcalError(f'{EXECUTOR_ENV}={value!r}: use one of {", ".join(EXECUTORS)} '
+                            '(or leave it unset for the node default)')
+    return value
+
+
+def make_executor(kind: str, threads: int = 2):
     """
-    Create the node with ``node_factory()`` and spin it until shutdown; returns exit code.
+    Return ``(executor, kind)`` for ``kind`` (events, single or multi).
 
-    ``threads=1`` spins a SingleThreadedExecutor (about half the CPU per message of a
-    MultiThreadedExecutor in rclpy: the choice for high-rate subscribers).
+    ``events`` falls back to ``single`` when this rclpy has no EventsExecutor.
     """
-    rclpy.init(args=args if args is not None else sys.argv)
+    if kind == 'events':
+        try:
+            from rclpy.experimental import EventsExecutor
+        except ImportError:
+            kind = 'single'
+        else:
+            return EventsExecutor(), 'events'
+    if kind == 'multi':
+        return MultiThreadedExecutor(num_threads=max(2, threads)), 'multi'
+    return SingleThreadedExecutor(), 'single'
+
+
+class _StopFlag:
+    """Set by SIGINT/SIGTERM; a second signal raises KeyboardInterrupt (stop at once)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def handler(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+def _install_signal_handlers(stop: _StopFlag) -> dict:
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, stop.handler)
+        except ValueError:  # not the main thread (a node run inside a test thread)
+            pass
+    return previous
+
+
+def _restore_signal_handlers(previous: dict) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
+
+
+def _spin(executor, kind: str, stop: _StopFlag) -> None:
+    """Spin until a signal sets ``stop`` or the context shuts down."""
+    context = executor.context
+    if kind == 'events':
+        # The events executor's spin() neither returns on a signal nor delivered anything
+        # in rclpy 7.1.6; spinning on a future that never completes, with a timeout, does.
+        never = Future()
+        while not stop.requested and context.ok():
+            executor.spin_until_future_complete(never, timeout_sec=_SPIN_TIMEOUT_S)
+        return
+    while not stop.requested and context.ok():
+        executor.spin_once(timeout_sec=_SPIN_TIMEOUT_S)
+
+
+def _node_in_traceback(exc: BaseException) -> Optional[Node]:
+    """Return the node whose constructor raised ``exc`` (a frame's ``self``), if any."""
+    found = None
+    for frame, _ in traceback.walk_tb(exc.__traceback__):
+        candidate = frame.f_locals.get('self')
+        if isinstance(candidate, Node):
+            found = candidate
+    return found
+
+
+def _node_name(node: Optional[Node]) -> Optional[str]:
+    try:
+        return node.get_name() if node is not None else None
+    except Exception:  # noqa: B902 - a node whose construction failed early has no handle
+        return None
+
+
+def _executable_name() -> str:
+    return os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else 'accelcal_ros'
+
+
+def _linger_for_rosout(node: Node, discovery_s: float = 1.0, delivery_s: float = 0.3) -> None:
+    """
+    Keep the node alive until ``/rosout`` subscribers (rqt_console, a recorder) got the line.
+
+    Waits at most ``discovery_s`` for one to be discovered, then ``delivery_s``.
+    """
+    deadline = time.monotonic() + discovery_s
+    try:
+        while time.monotonic() < deadline:
+            if node.count_subscribers('/rosout') > 0:
+                time.sleep(delivery_s)
+                return
+            time.sleep(0.05)
+    except Exception:  # noqa: B902 - the graph query is best effort
+        pass
+
+
+def report_fatal(node: Optional[Node], message: str) -> None:
+    """
+    Log one FATAL line through the node's logger (stderr and ``/rosout``).
+
+    Without a node (or before rclpy is initialised) the line goes through a logger named
+    after the executable, or to stderr.
+    """
+    name = _node_name(node)
+    try:
+        if name is not None:
+            node.get_logger().fatal(message)
+            _linger_for_rosout(node)
+            return
+        rclpy.logging.get_logger(_executable_name()).fatal(message)
+    except Exception:  # noqa: B902 - logging itself failed: plain stderr
+        print(f'[{name or _executable_name()}] error: {message}', file=sys.stderr, flush=True)
+
+
+def _close(node: Node, built: bool) -> None:
+    if built:
+        close = getattr(node, 'close', None)
+        if close is not None:
+            close()
+    try:
+        node.destroy_node()
+    except Exception:  # noqa: B902 - a half-built node may fail to destroy: exiting anyway
+        pass
+
+
+def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
+        threads: int = 2, executor: Optional[str] = None) -> int:
+    """
+    Create the node with ``node_factory()``, spin it until SIGINT/SIGTERM; return the exit code.
+
+    ``executor`` is the node's default (events, single or multi; ``$ACCELCAL_EXECUTOR``
+    overrides it); when not given, ``threads=1`` means single and more threads multi (the
+    old interface). ``threads`` is the MultiThreadedExecutor's thread count.
+    """
+    from rclpy.signals import SignalHandlerOptions
+
+    default = executor or ('single' if threads == 1 else 'multi')
+    stop = _StopFlag()
+    previous = _install_signal_handlers(stop)
     node = None
+    built = False
+    spinner = None
     code = 0
     try:
+        kind = executor_kind(default)
+        rclpy.init(args=list(args) if args is not None else sys.argv,
+                   signal_handler_options=SignalHandlerOptions.NO)
         node = node_factory()
-        executor = (SingleThreadedExecutor() if threads == 1
-                    else MultiThreadedExecutor(num_threads=threads))
-        executor.add_node(node)
-        executor.spin()
-    except AccelcalError as exc:
-        name = getattr(node, 'get_name', lambda: 'accelcal_ros')()
-        print(f'[{name}] error: {exc}', file=sys.stderr, flush=True)
+        built = True
+        spinner, kind = make_executor(kind, threads)
+        spinner.add_node(node)
+        node.get_logger().debug(f'spinning with the {kind} executor')
+        _spin(spinner, kind, stop)
+    except (AccelcalError, ParameterException) as exc:
+        if node is None:
+            node = _node_in_traceback(exc)
+        report_fatal(node, str(exc))
         code = 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
-            close = getattr(node, 'close', None)
-            if close is not None:
-                close()
-            node.destroy_node()
+            _close(node, built)
+        if spinner is not None:
+            spinner.shutdown()
         if rclpy.ok():
             rclpy.shutdown()
+        _restore_signal_handlers(previous)
     return code
