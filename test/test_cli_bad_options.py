@@ -1,0 +1,144 @@
+"""
+Table-driven test of bad ``accelcal`` options: one line, a status, never a traceback.
+
+The table is built from the parser itself: every numeric option of every subcommand
+(those whose type is ``int``/``float`` or one of :mod:`accelcal_ros.cli_args`) is given
+``0``, ``-1``, ``nan``, ``inf``, ``1e999`` and ``text``; each value its type rejects must
+end with status 2 and one ``accelcal: error:`` line naming the option. No numeric option
+may accept NaN, infinity or text (a new ``type=float`` option fails here until it uses
+:mod:`accelcal_ros.cli_args`).
+"""
+import argparse
+import os
+import subprocess
+import sys
+
+from accelcal_ros import cli
+from accelcal_ros.cli import build_parser, main
+import pytest
+
+BAD_VALUES = ('0', '-1', 'nan', 'inf', '1e999', 'text')
+NEVER_VALID = ('nan', 'inf', '1e999', 'text')
+
+
+def _subcommands(parser, prefix=()):
+    """Yield ``(argv prefix, subparser)`` for every leaf subcommand."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield prefix, parser
+        return
+    for action in subs:
+        for name, sub in action.choices.items():
+            yield from _subcommands(sub, prefix + (name,))
+
+
+def _is_numeric(action):
+    kind = action.type
+    return kind in (int, float) or getattr(kind, '__module__', '') == 'accelcal_ros.cli_args'
+
+
+def _rejects(action, value):
+    try:
+        action.type(value)
+    except (argparse.ArgumentTypeError, TypeError, ValueError):
+        return True
+    return action.choices is not None and action.type(value) not in action.choices
+
+
+def numeric_options():
+    """Every ``(argv prefix, action)`` of a numeric option."""
+    return [(prefix, action) for prefix, sub in _subcommands(build_parser())
+            for action in sub._actions if action.option_strings and _is_numeric(action)]
+
+
+def _argv(prefix, action, value):
+    count = action.nargs if isinstance(action.nargs, int) else 1
+    return [*prefix, action.option_strings[-1], *([value] * count)]
+
+
+CASES = [(prefix, action, value) for prefix, action in numeric_options()
+         for value in BAD_VALUES if _rejects(action, value)]
+
+
+def test_the_table_covers_the_options_of_the_issue():
+    """Every subcommand's numeric options are in the table (the issue's four included)."""
+    names = {(' '.join(p), a.option_strings[-1]) for p, a, _ in CASES}
+    for expected in [('calibrate', '--window-s'), ('calibrate', '--min-still-s'),
+                     ('record', '--duration'), ('study boresight', '--trials')]:
+        assert expected in names
+    assert len(CASES) >= 150
+
+
+def test_no_numeric_option_accepts_nan_infinity_or_text():
+    """A numeric option whose type lets NaN/inf/text through is a bug (use cli_args)."""
+    loose = [f'accelcal {" ".join(p)} {a.option_strings[-1]} {v}'
+             for p, a in numeric_options() for v in NEVER_VALID if not _rejects(a, v)]
+    assert not loose, 'accepted: ' + '; '.join(loose)
+
+
+@pytest.mark.parametrize('prefix, action, value', CASES,
+                         ids=[f'{" ".join(p)} {a.option_strings[-1]} {v}' for p, a, v in CASES])
+def test_bad_numeric_option_is_one_line_and_status_2(capsys, prefix, action, value):
+    """Status 2, one ``accelcal: error:`` line naming the option, nothing else."""
+    assert main(_argv(prefix, action, value)) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('accelcal: error:'), captured.err
+    assert action.option_strings[-1] in lines[0] and 'Traceback' not in captured.err
+    assert captured.out == ''
+
+
+def test_runtime_errors_are_one_line_and_status_1(tmp_path, capsys):
+    """A missing input, a directory as input or as output: one line, status 1."""
+    rec = tmp_path / 'rec.csv'
+    rec.write_text('t,ax,ay,az\n0,0,0,9.8\n')
+    for argv in (['calibrate', str(tmp_path / 'none.csv'), '-o', str(tmp_path / 'c.yaml')],
+                 ['calibrate', str(tmp_path), '-o', str(tmp_path / 'c.yaml')],
+                 ['record', '-o', str(tmp_path), '--duration', '1'],
+                 ['record', '-o', '/proc/accelcal.csv', '--duration', '1']):
+        assert main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and err.startswith('accelcal: error:'), err
+
+
+def test_unexpected_exception_is_one_line_with_a_hint(monkeypatch, capsys):
+    """A bug inside a handler: one line naming ACCELCAL_DEBUG; with it, the traceback."""
+    def broken(args):
+        raise RuntimeError('boom')
+
+    real = cli.build_parser
+
+    def patched():
+        parser = real()
+        parser.set_defaults(handler=broken)
+        for _, sub in _subcommands(parser):
+            sub.set_defaults(handler=broken)
+        return parser
+
+    monkeypatch.setattr(cli, 'build_parser', patched)
+    monkeypatch.delenv('ACCELCAL_DEBUG', raising=False)
+    assert main(['error-budget']) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and 'ACCELCAL_DEBUG=1' in err and 'boom' in err
+    monkeypatch.setenv('ACCELCAL_DEBUG', '1')
+    with pytest.raises(RuntimeError):
+        main(['error-budget'])
+
+
+def test_the_installed_command_never_prints_a_traceback(tmp_path):
+    """The real process: bad option (2), missing file (1), help mentions ACCELCAL_DEBUG."""
+    env = dict(os.environ)
+    env.pop('ACCELCAL_DEBUG', None)
+    run = [sys.executable, '-m', 'accelcal_ros']
+    for argv, status in ((['calibrate', 'x.csv', '-o', 'c.yaml', '--window-s', '0'], 2),
+                         (['record', '-o', str(tmp_path / 'r.csv'), '--duration', 'nan'], 2),
+                         (['study', 'boresight', '--trials', '0'], 2),
+                         (['apply', str(tmp_path / 'none.csv'), '--calibration', 'c.yaml',
+                           '-o', str(tmp_path / 'out.csv')], 1)):
+        proc = subprocess.run(run + argv, capture_output=True, text=True, env=env,
+                              timeout=120)
+        assert proc.returncode == status, (argv, proc.stderr)
+        assert len(proc.stderr.strip().splitlines()) == 1 and 'Traceback' not in proc.stderr
+    helptext = subprocess.run(run + ['--help'], capture_output=True, text=True, env=env,
+                              timeout=120).stdout
+    assert 'ACCELCAL_DEBUG=1' in helptext
