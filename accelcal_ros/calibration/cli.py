@@ -120,8 +120,8 @@ def _read_recording_of(args):
     with open_bag(args.recording, args.stamp) as bag:
         imu = read_imu(bag, args.topic)
     warn(imu.warnings)
-    print(f'{args.recording}: {imu.topic}, {len(imu.t)} samples over '
-          f'{imu.t[-1] - imu.t[0]:.1f} s', file=sys.stderr)
+    print(f'{args.recording}: {imu.topic}, {len(imu.t)} samples over {imu.t[-1]:.1f} s; '
+          f'times in s from its first sample at {imu.epoch_ns / 1e9:.6f} s', file=sys.stderr)
     return imu.t, imu.accel / STANDARD_GRAVITY
 
 
@@ -178,8 +178,9 @@ def _apply_to_bag(args, model):
 
 
 def _calibrate(args):
-    from accelcal_ros.sensor.calibration_file import save_calibration
     from accelcal_ros.calibration.session import Calibrator, CalibratorConfig
+    from accelcal_ros.errors import CalibrationError
+    from accelcal_ros.sensor.calibration_file import save_calibration
 
     t, accel_g = _read_recording_of(args)
     config = CalibratorConfig(model=args.model, min_separation_deg=args.min_separation_deg,
@@ -196,7 +197,11 @@ def _calibrate(args):
         print(f'{rejected} samples rejected (NaN: {calibrator.detector.rejected_nan}, '
               f'saturated: {calibrator.detector.rejected_saturated})')
     print(calibrator.progress().text())
-    result = calibrator.finish()
+    try:
+        result = calibrator.finish()
+    except CalibrationError as exc:
+        raise CalibrationError(f'{args.recording}: {exc}; record the sensor still in more '
+                               'orientations and run accelcal calibrate again') from None
     for warning in result.warnings:
         print(f'warning: {warning}')
     save_calibration(args.output, result)

@@ -25,7 +25,8 @@ from accelcal_ros.lidar.cloud import finite_mask, make_cloud, point_times, xyz
 from accelcal_ros.lidar.static_segments import find_static_segments
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagReader
-from accelcal_ros.recording.streams import check_stamps, message_time_s, read_imu
+from accelcal_ros.recording.streams import (check_stamps, message_time_ns, message_time_s,
+                                            read_imu)
 import numpy as np
 
 
@@ -58,7 +59,7 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
     header, receive = [], []
     outside = 0
     for k, message in enumerate(bag.messages([points_name], f'reading {points_name}')):
-        t = message_time_s(message, bag.stamp)
+        t = (message_time_ns(message, bag.stamp) - imu.epoch_ns) / 1e9
         header.append(message.header_ns * 1e-9)
         receive.append(message.receive_ns * 1e-9)
         i = int(np.searchsorted(starts, t, side='right')) - 1
@@ -75,7 +76,7 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
     positions, dropped, spans = [], {}, []
     for i, (seg, heap) in enumerate(zip(segments, kept)):
         name = f'pos{i + 1:02d}'
-        span = f'{seg.t_start - imu.t[0]:.2f}..{seg.t_stop - imu.t[0]:.2f} s'
+        span = f'{seg.t_start:.2f}..{seg.t_stop:.2f} s'
         if not heap:
             dropped[name] = f'still {span} into {imu.topic} but no scan of {points_name} in it'
             continue

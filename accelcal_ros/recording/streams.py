@@ -24,12 +24,22 @@ JUMP_FACTOR = 10.0
 """A gap longer than this many median periods (and than 0.1 s) is a jump."""
 
 
-def message_time_s(message: BagMessage, stamp: str) -> float:
-    """Return the time of a message in s: header stamp, or receive time (see module doc)."""
+def message_time_ns(message: BagMessage, stamp: str) -> int:
+    """Return the time of a message in ns: header stamp, or receive time (see module doc)."""
     header = message.header_ns
-    if stamp == 'receive' or header == 0:
-        return message.receive_ns * 1e-9
-    return header * 1e-9
+    return message.receive_ns if stamp == 'receive' or header == 0 else header
+
+
+def message_time_s(message: BagMessage, stamp: str) -> float:
+    """Return :func:`message_time_ns` in s (absolute: about 0.2 us resolution in 2020s)."""
+    return message_time_ns(message, stamp) * 1e-9
+
+
+def used_times_ns(header_ns: np.ndarray, receive_ns: np.ndarray, stamp: str) -> np.ndarray:
+    """Return the times used (int64 ns) of a topic's messages (see the module docstring)."""
+    header_ns = np.asarray(header_ns, dtype=np.int64)
+    receive_ns = np.asarray(receive_ns, dtype=np.int64)
+    return receive_ns if stamp == 'receive' else np.where(header_ns != 0, header_ns, receive_ns)
 
 
 def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp: str
@@ -78,13 +88,19 @@ def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp:
 
 @dataclass
 class ImuStream:
-    """An IMU topic: times ``t`` (s), specific force (N, 3) m/s^2, rate (N, 3) rad/s or None."""
+    """
+    An IMU topic: specific force (N, 3) m/s^2, rate (N, 3) rad/s or None.
+
+    ``t`` (s) counts from ``epoch_ns`` (the first sample's time, ns): relative times keep
+    full float resolution, ``(ns - epoch_ns) / 1e9`` is exactly the decimal a CSV holds.
+    """
 
     topic: str
     t: np.ndarray
     accel: np.ndarray
     gyro: Optional[np.ndarray]
     frame_id: str
+    epoch_ns: int = 0
     warnings: List[str] = field(default_factory=list)
 
 
@@ -114,19 +130,30 @@ def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> I
         accel.append(a)
         gyro.append(w)
         provided = provided or p
-        header.append(message.header_ns * 1e-9)
-        receive.append(message.receive_ns * 1e-9)
+        header.append(message.header_ns)
+        receive.append(message.receive_ns)
         frame_id = frame_id or str(message.msg.header.frame_id)
-    header, receive = np.array(header), np.array(receive)
-    warnings = check_stamps(name, header, receive, bag.stamp)
-    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    used_ns = used_times_ns(header, receive, bag.stamp)
+    epoch_ns = int(used_ns.min())
+    warnings = _check_ns(name, header, receive, bag.stamp, epoch_ns)
+    t = (used_ns - epoch_ns) / 1e9
     accel = np.array(accel).reshape(-1, 3)
     gyro_arr = np.array(gyro).reshape(-1, 3) if provided else None
     bad = ~np.all(np.isfinite(accel), axis=1)
     if bad.all():
         raise InputError(f'{name}: every linear_acceleration is NaN or infinite')
     t, (accel, gyro_arr), more = _sorted_unique(name, t, accel, gyro_arr)
-    return ImuStream(name, t, accel, gyro_arr, frame_id, warnings + more)
+    return ImuStream(name, t, accel, gyro_arr, frame_id, epoch_ns, warnings + more)
+
+
+def _check_ns(name, header_ns, receive_ns, stamp, epoch_ns):
+    """:func:`check_stamps` on ns arrays, relative to ``epoch_ns`` (full resolution)."""
+    header_ns = np.asarray(header_ns, dtype=np.int64)
+    rel_header = np.where(header_ns != 0, (header_ns - epoch_ns) / 1e9, 0.0)
+    rel_receive = (np.asarray(receive_ns, dtype=np.int64) - epoch_ns) / 1e9
+    # a header stamp exactly at the epoch is not "no header": nudge it off zero
+    rel_header[(header_ns != 0) & (rel_header == 0.0)] = 1e-12
+    return check_stamps(name, rel_header, rel_receive, stamp)
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Write the simulators' data as bags (rosbag2 mcap, rosbag2 sqlite3, ROS 1) for the tests."""
+"""Write the simulators' data as bags (rosbag2 mcap, rosbag2 sqlite3, ROS 1): tests, benchmark."""
 from accelcal_ros.recording.writer import BagWriter, sensor_data_qos
 import numpy as np
 
