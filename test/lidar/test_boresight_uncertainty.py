@@ -12,7 +12,7 @@ TRUTH = sim.default_boresight()
 
 
 @pytest.fixture(scope='module')
-def positions():
+def protocol_positions():
     """Return paper B's 15 simulated static positions (seed 7)."""
     return sim.positions_for_calibration(sim.simulate_protocol(TRUTH, seed=7))
 
@@ -48,11 +48,12 @@ def test_small_sample_factor():
     assert abs(small_sample_factor(10 ** 6) - 1) < 1e-3
 
 
-def test_two_positions_claim_an_honest_sigma(positions):
+def test_two_positions_claim_an_honest_sigma(protocol_positions):
     """Pairs of positions: the error stays within 2 sigma (was 0.09 deg vs 0.004 claimed)."""
     covered, pairs = 0, [(0, 7), (2, 11), (4, 6), (5, 13), (8, 12), (1, 10)]
     for i, j in pairs:
-        res = calibrate_boresight([positions[i], positions[j]], sim.nominal_mount())
+        pair = [protocol_positions[i], protocol_positions[j]]
+        res = calibrate_boresight(pair, sim.nominal_mount())
         err = Rotation.from_matrix(TRUTH @ res.rotation.T).as_rotvec()
         sigma = np.sqrt(np.diag(res.covariance_rad2))
         covered += bool(np.all(np.abs(err) <= 2 * sigma))
@@ -61,9 +62,10 @@ def test_two_positions_claim_an_honest_sigma(positions):
 
 
 @pytest.mark.parametrize('prior', [True, False])
-def test_copies_of_one_position_are_refused(positions, prior):
+def test_copies_of_one_position_are_refused(protocol_positions, prior):
     """Six copies of one position: the rotation about gravity is undetermined -> refuse."""
-    copies = [StaticPosition(f'pos{k:02d}', positions[3].points, positions[3].gravity_m_s2)
+    copies = [StaticPosition(f'pos{k:02d}', protocol_positions[3].points,
+                             protocol_positions[3].gravity_m_s2)
               for k in range(6)]
     with pytest.raises(UnconstrainedBoresightError, match='(?i)add positions tilted') as err:
         calibrate_boresight(copies, sim.nominal_mount() if prior else None)
@@ -78,9 +80,9 @@ def test_same_tilt_positions_are_refused():
         calibrate_boresight(same, sim.nominal_mount())
 
 
-def test_fifteen_positions_sigma_is_consistent(positions):
+def test_fifteen_positions_sigma_is_consistent(protocol_positions):
     """On the full protocol the 1-sigma is small and the error within 3 sigma of it."""
-    res = calibrate_boresight(positions, sim.nominal_mount())
+    res = calibrate_boresight(protocol_positions, sim.nominal_mount())
     assert rotation_angle_deg(res.rotation, TRUTH) < 0.05
     assert np.all(res.rpy_std_deg < 0.05)
     err = Rotation.from_matrix(TRUTH @ res.rotation.T).as_rotvec()
