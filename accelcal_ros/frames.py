@@ -138,7 +138,10 @@ def rotation_matrix_from_list(values, name='rotation', tolerance=1e-6):
     Accepts a small deviation (``tolerance`` on ``R R^T - I`` and on ``det R - 1``) so that
     values written with limited precision still load; the result is re-orthonormalised.
     """
-    arr = np.asarray(values, dtype=float)
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f'{name}: expected 9 row-major numbers, got {values!r:.80}') from None
     if arr.size != 9:
         raise InputError(f'{name}: expected 9 row-major values, got {arr.size}')
     r = arr.reshape(3, 3)

@@ -142,3 +142,34 @@ def test_the_installed_command_never_prints_a_traceback(tmp_path):
     helptext = subprocess.run(run + ['--help'], capture_output=True, text=True, env=env,
                               timeout=120).stdout
     assert 'ACCELCAL_DEBUG=1' in helptext
+
+
+def test_zero_point_cloud_and_malformed_p2p_mount_are_clear_errors(tmp_path, capsys,
+                                                                  monkeypatch):
+    """georeference of an empty scan: one line; p2p-solve: a bad mount line, stream goes on."""
+    import io
+    import json
+
+    from accelcal_ros.lidar.cloud import make_cloud, write_cloud
+    from accelcal_ros.lidar.poses import PoseStream, write_poses_csv
+    import numpy as np
+
+    write_cloud(str(tmp_path / 'empty.ply'), make_cloud(np.zeros((0, 3)), time=np.zeros(0)))
+    t = np.arange(5) * 0.1
+    write_poses_csv(tmp_path / 'poses.csv',
+                    PoseStream(t, np.zeros((5, 3)), np.tile([0, 0, 0, 1.0], (5, 1))))
+    (tmp_path / 'bs.yaml').write_text('rpy_deg: [0, 0, 0]\n')
+    assert main(['georeference', '--cloud', str(tmp_path / 'empty.ply'), '--poses',
+                 str(tmp_path / 'poses.csv'), '--boresight', str(tmp_path / 'bs.yaml'),
+                 '-o', str(tmp_path / 'out.pcd')]) == 1
+    err = capsys.readouterr().err
+    assert 'no points' in err and len(err.strip().splitlines()) == 1
+    problem = {'uv': [[700, 500], [500, 520]], 'K': [1000, 0, 640, 0, 1000, 480, 0, 0, 1],
+               'points': [[0, 0, 0], [1, 0, 0]], 'roll': 0.1, 'pitch': 0.2}
+    lines = [json.dumps(dict(problem, imu_to_camera=mount))
+             for mount in ('abc', [[1, 'x', 0]], [1, 0, 0, 0, 1, 0, 0, 0, 1])]
+    monkeypatch.setattr('sys.stdin', io.StringIO('\n'.join(lines) + '\n'))
+    assert main(['p2p-solve']) == 1
+    out = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(out) == 3 and 'imu_to_camera' in out[0]['error']
+    assert 'imu_to_camera' in out[1]['error'] and out[2]['solutions']

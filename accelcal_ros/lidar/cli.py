@@ -239,6 +239,10 @@ def _georeference(args):
     boresight = load_boresight(args.boresight)
     poses = read_poses_csv(args.poses)
     cloud = read_cloud(args.cloud)
+    if len(cloud) == 0:
+        from accelcal_ros.errors import InputError
+
+        raise InputError(f'{args.cloud} holds no points: nothing to georeference')
     try:
         times = point_times(cloud, args.time_base, args.time_field)
     except Exception as exc:
