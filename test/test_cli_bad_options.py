@@ -144,9 +144,8 @@ def test_the_installed_command_never_prints_a_traceback(tmp_path):
     assert 'ACCELCAL_DEBUG=1' in helptext
 
 
-def test_zero_point_cloud_and_malformed_p2p_mount_are_clear_errors(tmp_path, capsys,
-                                                                  monkeypatch):
-    """georeference of an empty scan: one line; p2p-solve: a bad mount line, stream goes on."""
+def test_empty_scan_and_malformed_p2p_mount_are_clear_errors(tmp_path, capsys, monkeypatch):
+    """An empty scan to georeference: one line; p2p-solve: a bad mount line, stream goes on."""
     import io
     import json
 
