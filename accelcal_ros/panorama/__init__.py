@@ -7,9 +7,11 @@ camera, plus the reference camera's roll and pitch from the accelerometer, give 
 levelled panorama at video rate.
 
 - :mod:`.projection` -- panorama pixel <-> ray (spherical / cylindrical), frames contract.
-- :mod:`.rig`        -- rig file loading and validation.
-- :mod:`.lookup`     -- camera choice (eq. 6), projection (eq. 7 and the projection step),
-  exact and fast (coarse grid + interpolation) lookup maps.
+- :mod:`.rig`        -- rig file loading and validation (cameras: :mod:`accelcal_ros.camera`).
+- :mod:`.rig_projection` -- tilt (eq. 7), camera choice (eq. 6) and projection of rays.
+- :mod:`.mosaic`     -- where each camera image sits in the mosaic that is remapped.
+- :mod:`.maps`       -- exact and blend lookup maps (every pixel evaluated).
+- :mod:`.lookup`     -- the fast lookup builder (coarse grid + interpolation + exact seams).
 - :mod:`.stitch`     -- :class:`~.stitch.Stitcher`: one ``cv2.remap`` per frame.
 - :mod:`.render`     -- synthetic equirectangular scenes and camera views (ground truth).
 - :mod:`.horizon_study` -- ``accelcal study horizon`` (paper A, Fig. 6).

@@ -1,24 +1,9 @@
 r"""
-Lookup maps: for every panorama pixel, the camera and the point of its image to sample.
+Lookup maps, fast: the coarse grid, cell classes and exact seams (the stitcher's rebuild).
 
-Frames (see :mod:`.projection` and :mod:`.rig`): a panorama ray ``M`` in the levelled
-panorama frame ``P`` goes into the reference camera's optical frame by the tilt
-
-.. math::  T(\phi, \theta) = C\, R_{bl}(\phi, \theta)^T R_z(\psi_0)\, C_0^T
-
-where ``R_bl = R_y(pitch) R_x(roll)`` takes body vectors into the level frame (REP-103,
-:func:`accelcal_ros.frames.rotation_from_rpy_radians`), ``C`` is ``imu_to_camera``,
-``C_0`` is :data:`accelcal_ros.frames.DEFAULT_IMU_TO_CAMERA` and ``psi_0`` is the
-heading of the reference camera's optical axis in the body frame (0 for the default
-``C``, so that ``T = C R_bl^T C^T = R_z(-roll) R_x(pitch)``: paper A's eq. 7
-``R_phitheta = R_z(phi) R_x(theta)`` in the optical frame, with ``phi = -roll`` and
-``theta = pitch``). Camera ``i`` sees the ray as ``c_i = R_0i T M`` (the projection
-step ``lambda m = K_i R_0i R_phitheta M`` with a far scene).
-
-Camera choice (eq. 6): the camera whose optical axis is closest to the ray, i.e. the
-largest ``z`` component of ``c_i`` (the third row of ``R_0i T`` dotted with ``M``). The
-pixel is then projected through ``K_i`` and the OpenCV distortion ``D_i``; if it falls
-outside that camera's frame the panorama pixel is black (step 5), as in the paper.
+Rays are projected into the rig by :mod:`.rig_projection` (the tilt, eq. 7; the camera
+choice, eq. 6; the lens); :mod:`.maps` builds exact maps; this module builds the
+same map fast. The names of those modules are re-exported here.
 
 Maps are expressed in the coordinates of a *mosaic*: all camera images side by side,
 separated by black gaps (:class:`MosaicLayout`), so a whole panorama frame is one
@@ -29,7 +14,7 @@ a point farther out is black (step 5); the gaps make that hold in the mosaic too
 
 Two builders give the same map:
 
-- :meth:`LookupBuilder.build_exact` evaluates every pixel (about a second at 3600x2400).
+- :meth:`~.maps.MapBuilder.build_exact` evaluates every pixel (about a second at 3600x2400).
 - :meth:`LookupBuilder.build_fast` evaluates exactly a coarse grid of nodes every
   ``grid_step`` pixels and classifies each cell (:meth:`LookupBuilder.classify`) as
   *pure* -- the same camera at its corners, within the mosaic gap around that camera's
@@ -48,141 +33,35 @@ Two builders give the same map:
   evaluated (:meth:`LookupBuilder.seen_rows` bounds them beforehand from the frames'
   borders) and built.
   ``test/panorama/test_lookup.py`` measures the maximum error over every pixel against
-  :meth:`LookupBuilder.build_exact`.
+  :meth:`~.maps.MapBuilder.build_exact`.
 """
-from dataclasses import dataclass
 import math
 import time
 
-from accelcal_ros.camera import distort_normalized, PLUMB_BOB, undistort_normalized  # noqa: F401
+from accelcal_ros.camera import distort_normalized, undistort_normalized
 from accelcal_ros.errors import InputError
-from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rotation_from_rpy_radians
+from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
+from accelcal_ros.panorama.maps import MapBuilder
+from accelcal_ros.panorama.mosaic import FIXED_POINT_LIMIT, MosaicLayout, OUTSIDE
+from accelcal_ros.panorama.rig_projection import (_SIDE_INVALID, DISTORTION_RADIUS_MARGIN,
+                                                  frame_border_pixels,
+                                                  frame_radius_and_limit2,
+                                                  normalized_from_pixels,
+                                                  reference_heading_rad, RigProjection,
+                                                  tilt_matrix)
 import numpy as np
 
-OUTSIDE = -1000.0
-"""Map value of a pixel no camera sees: far outside the mosaic, so ``cv2.remap`` gives 0."""
-FIXED_POINT_LIMIT = 32000
-"""Mosaic sides are kept below this so maps convert to OpenCV's 16-bit fixed point."""
+__all__ = ['CENTRE_CHECK_FRACTION', 'distort_normalized', 'DISTORTION_RADIUS_MARGIN',
+           'FIXED_POINT_LIMIT', 'frame_border_pixels', 'frame_radius_and_limit2',
+           'LookupBuilder', 'MapBuilder', 'MosaicLayout', 'normalized_from_pixels', 'OUTSIDE',
+           'reference_heading_rad', 'RigProjection', 'tilt_matrix', 'undistort_normalized']
+
 CENTRE_CHECK_FRACTION = 0.75
 """A pure cell's error at its centre and edge midpoints must be below this fraction of
 ``tolerance_px`` (the rest covers higher-order terms; the tests measure every pixel)."""
-DISTORTION_RADIUS_MARGIN = 1.5
-"""Rays farther from the axis than this times the frame's largest radius are rejected."""
-
-_SIDE_LEFT, _SIDE_RIGHT, _SIDE_TOP, _SIDE_BOTTOM, _SIDE_INVALID = 1, 2, 4, 8, 16
 
 
-def reference_heading_rad(imu_to_camera):
-    """
-    Return the heading (yaw, rad, REP-103) of the reference camera's axis in the body frame.
-
-    The panorama's azimuth 0 is this direction, levelled. Raises :class:`InputError` when
-    the camera looks straight up or down (heading undefined).
-    """
-    c = np.asarray(imu_to_camera, dtype=float).reshape(3, 3)
-    axis_body = c[2]  # C^T e_z
-    if math.hypot(axis_body[0], axis_body[1]) < 1e-6:
-        raise InputError('imu_to_camera: the reference camera looks straight up or down; '
-                         'the panorama heading is undefined')
-    return math.atan2(axis_body[1], axis_body[0])
-
-
-def tilt_matrix(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
-    """
-    Rotation ``T`` taking panorama-frame rays into the reference camera frame.
-
-    ``roll``, ``pitch`` in radians (REP-103 body attitude). See the module docstring.
-    """
-    if not (math.isfinite(roll) and math.isfinite(pitch)):
-        raise InputError(f'attitude must be finite, got roll={roll!r}, pitch={pitch!r}')
-    c = np.asarray(imu_to_camera, dtype=float).reshape(3, 3)
-    yaw0 = reference_heading_rad(c)
-    return c @ rotation_from_rpy_radians(roll, pitch).T @ rot_z(yaw0) @ DEFAULT_IMU_TO_CAMERA.T
-
-
-def normalized_from_pixels(camera, px, py):
-    """Return normalized undistorted coordinates ``(x, y)`` of pixels of ``camera``."""
-    return getattr(camera, 'model', camera).normalized_from_pixels(px, py)
-
-
-def frame_border_pixels(camera, outset=0.0, per_side=64):
-    """
-    Pixel coordinates ``(xs, ys)`` walking once around a frame, clockwise from top left.
-
-    The rectangle runs from ``-outset`` to ``width - 1 + outset`` (``height`` alike);
-    each side has ``per_side`` evenly spaced points, starting at its first corner.
-    """
-    x0, y0 = -outset, -outset
-    x1, y1 = camera.width - 1 + outset, camera.height - 1 + outset
-    t = np.linspace(0.0, 1.0, per_side, endpoint=False)
-    xs = np.concatenate([x0 + t * (x1 - x0), np.full_like(t, x1), x1 - t * (x1 - x0),
-                         np.full_like(t, x0)])
-    ys = np.concatenate([np.full_like(t, y0), y0 + t * (y1 - y0), np.full_like(t, y1),
-                         y1 - t * (y1 - y0)])
-    return xs, ys
-
-
-def frame_radius_and_limit2(camera):
-    """
-    Return the frame's largest normalized radius and the largest squared radius accepted.
-
-    For a distorted camera the OpenCV model is only invertible up to some radius; past
-    it, far-off rays fold back into the frame. The accepted limit is
-    ``DISTORTION_RADIUS_MARGIN`` times the largest undistorted radius of the frame's
-    border, cut where the radial mapping stops increasing.
-    """
-    xn, yn = normalized_from_pixels(camera, *frame_border_pixels(camera))
-    radius = float(np.sqrt(xn * xn + yn * yn).max())
-    limit = radius * DISTORTION_RADIUS_MARGIN
-    if camera.has_distortion():
-        r = np.linspace(0.0, limit, 2001)[1:]
-        k1, k2, _, _, k3 = camera.D
-        r2 = r * r
-        mapped = r * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3)))
-        bad = np.nonzero(np.diff(mapped) <= 0.0)[0]
-        if bad.size:
-            limit = min(limit, float(r[bad[0]]))
-            if limit <= radius:
-                raise InputError(f'camera {camera.name!r}: distortion D={camera.D.tolist()} '
-                                 'is not invertible over the frame (radial mapping folds '
-                                 'back); check the calibration')
-    return radius, limit * limit
-
-
-@dataclass(frozen=True)
-class MosaicLayout:
-    """
-    Where each camera's image sits in the mosaic: ``offsets[i] = (x0, y0)``, size, gap.
-
-    Images are separated from each other and from the mosaic's edges by ``gap`` black
-    pixels.
-    """
-
-    offsets: tuple
-    width: int
-    height: int
-    gap: int
-
-    @classmethod
-    def for_rig(cls, rig, gap=32, limit=FIXED_POINT_LIMIT):
-        """Place the images left to right, wrapping to a new row before ``limit`` px."""
-        offsets, x, y, row_h, width = [], gap, gap, 0, 0
-        for cam in rig.cameras:
-            if cam.width + 2 * gap > limit:
-                raise InputError(f'camera {cam.name!r}: width {cam.width} exceeds {limit}')
-            if x + cam.width + gap > limit:
-                x, y, row_h = gap, y + row_h + gap, 0
-            offsets.append((x, y))
-            x += cam.width + gap
-            row_h = max(row_h, cam.height)
-            width = max(width, x)
-        height = y + row_h + gap
-        if height > limit:
-            raise InputError(f'rig images do not fit a {limit}x{limit} mosaic')
-        return cls(tuple(offsets), width, height, gap)
-
-
-class LookupBuilder:
+class LookupBuilder(MapBuilder):
     """
     Build panorama lookup maps for a rig, a panorama geometry and an ``imu_to_camera``.
 
@@ -200,57 +79,26 @@ class LookupBuilder:
             raise InputError(f'grid_step must be an integer >= 4, got {grid_step!r}')
         if not (math.isfinite(tolerance_px) and tolerance_px > 0):
             raise InputError(f'tolerance_px must be positive, got {tolerance_px!r}')
-        for cam in rig.cameras:
-            if cam.distortion_model != PLUMB_BOB:
-                raise InputError(f'camera {cam.name!r}: the panorama supports the plumb_bob '
-                                 f'lens model only, not {cam.distortion_model}')
-        self.rig = rig
-        self.geometry = geometry
-        self.imu_to_camera = np.asarray(imu_to_camera, dtype=float).reshape(3, 3)
-        reference_heading_rad(self.imu_to_camera)
+        RigProjection.__init__(self, rig, geometry, imu_to_camera)
         self.tolerance_px = float(tolerance_px)
         self.step = self._choose_step(int(grid_step), geometry.width)
         s = self.step
-        radii = [frame_radius_and_limit2(c) for c in rig.cameras]
-        self._limits2 = np.array([lim for _, lim in radii])
-        # Bound on a cell's extent in camera pixels: its diagonal in radians times the
-        # largest pixel density any camera has within its accepted cone (f / cos^2 of the
-        # cone's half angle, times the distortion's largest radial stretch). The gap
-        # around each image in the mosaic holds the outer part of a pure cell straddling
-        # a frame edge; a point farther than the bound outside a frame proves the whole
-        # cell outside it; a ray past the distortion limit is that far when the limit's
-        # margin exceeds the bound.
-        el = geometry.elevation_rad(np.arange(geometry.height + 1) - 0.5)
-        rad_per_px = max(np.radians(geometry.fov_h_deg) / geometry.width,
-                         float(np.abs(np.diff(el)).max()))
-        density = max(self._pixel_density(c, lim) for c, lim in zip(rig.cameras,
-                                                                    self._limits2))
-        self._far = math.sqrt(2.0) * s * rad_per_px * density
+        # The gap around each image in the mosaic holds the outer part of a pure cell
+        # straddling a frame edge; a point farther than a cell's extent outside a frame
+        # proves the whole cell outside it; a ray past the distortion limit is that far
+        # when the limit's margin exceeds the extent.
+        self._far = self.cell_extent_px(s)
         gap = int(min(512, math.ceil(self._far) + 4))
-        self.layout = MosaicLayout.for_rig(rig, gap=gap + gap % 2)
+        self._place_images(gap + gap % 2)
         self._margin = self.layout.gap - 2.0
         frame_gap_px = np.array([(math.sqrt(lim) - radius) * min(c.K[0, 0], c.K[1, 1])
-                                 for c, (radius, lim) in zip(rig.cameras, radii)])
+                                 for c, (radius, lim) in zip(rig.cameras, self._radii)])
         self._invalid_is_far = frame_gap_px > self._far
-        self._sizes = np.array([[c.width, c.height] for c in rig.cameras], dtype=np.float32)
-        # per camera: fx, skew, cx, fy, cy, k1, k2, p1, p2, k3, limit^2, width, height
-        self._camera_table = np.array(
-            [[c.K[0, 0], c.K[0, 1], c.K[0, 2], c.K[1, 1], c.K[1, 2], *c.D, lim, c.width,
-              c.height] for c, lim in zip(rig.cameras, self._limits2)], np.float32).T.copy()
-        self._offsets = np.asarray(self.layout.offsets, dtype=np.float32)
         self._tiles_w = -(-geometry.width // s)
         self._tiles_h = -(-geometry.height // s)
-        # Separable ray tables of pixels -s .. n s + s - 1 per axis (index = pixel + s):
-        # the cells at the border reach half a cell beyond the panorama.
-        self._pad = s
-        cols = np.arange(-s, (self._tiles_w + 1) * s)
-        rows = np.arange(-s, (self._tiles_h + 1) * s)
-        az = geometry.azimuth_rad(cols)
-        el = geometry.elevation_rad(rows)
-        self._sin_az = np.sin(az).astype(np.float32)
-        self._cos_az = np.cos(az).astype(np.float32)
-        self._sin_el = np.sin(el).astype(np.float32)
-        self._cos_el = np.cos(el).astype(np.float32)
+        # Separable ray tables of pixels -s .. n s + s - 1 per axis: the cells at the
+        # border reach half a cell beyond the panorama.
+        self._set_ray_tables(s, (self._tiles_w + 1) * s, (self._tiles_h + 1) * s)
         # the same at pixel edges (continuous coordinate k - 1/2), for sub-block corners
         az_e = geometry.azimuth_rad(np.arange(-s, (self._tiles_w + 1) * s + 1) - 0.5)
         el_e = geometry.elevation_rad(np.arange(-s, (self._tiles_h + 1) * s + 1) - 0.5)
@@ -286,23 +134,10 @@ class LookupBuilder:
         self._centre_soa = np.ascontiguousarray(self._centre_rays.T)
         self._hmid_soa = np.ascontiguousarray(self._hmid_rays.T)
         self._vmid_soa = np.ascontiguousarray(self._vmid_rays.T)
-        self.workers = 1
-        self._pool = None
         self._buffer = None
         self._resize_pool = None
-        self._borders = [self._border_rays(c) for c in rig.cameras]
         self.band = (0, geometry.height)
         self.last_stats = {}
-
-    @staticmethod
-    def _pixel_density(camera, limit2):
-        """Largest camera pixels per radian within the accepted cone of ``camera``."""
-        r = np.linspace(0.0, math.sqrt(limit2), 200)
-        k1, k2, _, _, k3 = camera.D
-        r2 = r * r
-        stretch = max(1.0, float((1.0 + r2 * (3 * k1 + r2 * (5 * k2 + 7 * k3 * r2))).max()))
-        tangential = float(np.abs(camera.D[2:4]).sum()) * 6.0 * math.sqrt(limit2)
-        return max(camera.K[0, 0], camera.K[1, 1]) * (1.0 + limit2) * (stretch + tangential)
 
     @staticmethod
     def _choose_step(step, width):
@@ -312,242 +147,7 @@ class LookupBuilder:
                 return s
         return step
 
-    @staticmethod
-    def _border_rays(camera, per_side=128):
-        """
-        Rays (camera frame, unit, ``(3, 4 per_side)``) around the frame's bilinear support.
-
-        The support is ``-1 <= x <= width``, ``-1 <= y <= height`` (:meth:`evaluate`'s
-        side code 0), walked once around. Returns ``(rays, half_gap_rad)``: the largest
-        angle between consecutive rays, halved, bounds how far any point of the border
-        lies from the nearest sample.
-        """
-        xn, yn = normalized_from_pixels(camera, *frame_border_pixels(camera, 1.0, per_side))
-        rays = np.stack([xn, yn, np.ones_like(xn)])
-        rays /= np.linalg.norm(rays, axis=0)
-        cosine = np.clip(np.sum(rays * np.roll(rays, -1, axis=1), axis=0), -1.0, 1.0)
-        return rays, 0.5 * float(np.arccos(cosine).max())
-
-    def seen_rows(self, q):
-        """
-        Return ``(first, last + 1)``: a row range holding every pixel any camera sees.
-
-        ``q`` are :meth:`camera_rotations`. A frame's region on the sphere is bounded by
-        its border, so its highest and lowest points lie on the border (sampled, with the
-        sampling gap as margin) unless the region holds the zenith or the nadir, where
-        elevation peaks; both are tested by projecting them into the frame. Rows outside
-        the range need no evaluation: no camera sees them.
-        """
-        top, bottom = -np.inf, np.inf
-        poles = np.array([[0.0, 0.0], [-1.0, 1.0], [0.0, 0.0]], np.float32)  # zenith, nadir
-        # A pole outside a camera's accepted cone (behind it or past the distortion
-        # limit) is not in its frame; only a pole inside the cone is projected.
-        in_camera = np.einsum('nij,jk->nik', q, poles)  # (cameras, 3, 2)
-        depth = in_camera[:, 2]
-        safe = np.where(depth > 1e-6, depth, 1.0)
-        radius2 = (in_camera[:, 0] ** 2 + in_camera[:, 1] ** 2) / safe ** 2
-        in_cone = (depth > 1e-6) & (radius2 <= self._limits2[:, None])
-        for i, (rays, half_gap) in enumerate(self._borders):
-            pano = q[i].T @ rays  # camera -> panorama frame P (y down)
-            elevation = np.arcsin(np.clip(-pano[1], -1.0, 1.0))
-            high = float(elevation.max()) + half_gap
-            low = float(elevation.min()) - half_gap
-            if in_cone[i].any():
-                side = self._evaluate_soa(poles, q, only=i)[3]
-                if side[0] == 0:
-                    high = math.pi / 2
-                if side[1] == 0:
-                    low = -math.pi / 2
-            top, bottom = max(top, high), min(bottom, low)
-        g = self.geometry
-        limit = np.radians(g.fov_v_deg) / 2 if g.projection == 'spherical' else \
-            np.radians(89.9)
-        first = g.row_from_elevation(min(float(top), limit))
-        last = g.row_from_elevation(max(float(bottom), -limit))
-        first = max(0, int(math.floor(first)) - 1)
-        last = min(g.height, int(math.ceil(last)) + 2)
-        return (first, last) if last > first else (0, 0)
-
-    # -- geometry -------------------------------------------------------------------------
-    def camera_rotations(self, roll, pitch):
-        """Return ``Q_i = R_0i T`` (n, 3, 3): panorama frame -> camera ``i``, float64."""
-        t = tilt_matrix(roll, pitch, self.imu_to_camera)
-        return np.stack([cam.R @ t for cam in self.rig.cameras])
-
-    def evaluate(self, rays, rotations, only=None):
-        """
-        Project panorama-frame rays ``(N, 3)`` into the rig (eq. 6, eq. 7, projection).
-
-        ``rotations`` are :meth:`camera_rotations`. Returns ``(label, x, y, side)``: the
-        chosen camera (eq. 6; camera ``only`` for every ray when given), its pixel
-        coordinates (float32; undefined where ``side & 16``), and a bit set saying where
-        the point lies relative to that camera's frame: 0 within the bilinear support of
-        its pixels (``-1 < x < width``, ``-1 < y < height``), 1/2/4/8 left of / right of
-        / above / below it, 16 behind the camera or past the distortion limit.
-        """
-        soa = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 3).T)
-        return self._evaluate_soa(soa, rotations, only)
-
-    def _evaluate_soa(self, rays, rotations, only=None):
-        """
-        :meth:`evaluate` for rays stored as ``(3, N)`` float32.
-
-        Every ray is rotated into every camera by one product (a few flops more than
-        needed, but a fixed, small number of numpy calls whatever the number of
-        cameras); each ray's camera constants are gathered from ``_camera_table``.
-        ``einsum``, not ``@``: a BLAS product of this size wakes OpenBLAS's threads,
-        which then spin and slow the ``cv2.remap`` that follows by a third.
-        """
-        q = np.asarray(rotations, dtype=np.float32)
-        n = rays.shape[1]
-        if only is not None or len(q) == 1:
-            target = 0 if only is None else int(only)
-            label = np.full(n, target, np.intp)
-            cx, cy, cz = np.einsum('ij,jn->in', q[target], rays)
-            constants = self._camera_table[:, target]
-        else:
-            every = np.einsum('ij,jn->in', q.reshape(-1, 3), rays).reshape(len(q), 3, n)
-            # eq. 6: the largest z component in any camera (first camera on ties)
-            label = np.zeros(n, np.intp)
-            best = every[0, 2].copy()
-            for i in range(1, len(q)):
-                label[every[i, 2] > best] = i
-                np.maximum(best, every[i, 2], out=best)
-            at = label * (3 * n) + np.arange(n)  # element (label, 0, i) of ``every``
-            flat = every.reshape(-1)
-            cx, cy, cz = flat.take(at), flat.take(at + n), flat.take(at + 2 * n)
-            constants = np.take(self._camera_table, label, axis=1)
-        fx, skew, ppx, fy, ppy, k1, k2, p1, p2, k3, limit2, width, height = constants
-        front = cz > 1e-6
-        inv = np.float32(1.0) / np.where(front, cz, np.float32(1.0))
-        xn, yn = cx * inv, cy * inv
-        invalid = ~front | (xn * xn + yn * yn > limit2)
-        # rays nearly perpendicular to the axis (invalid: past the limit) may overflow
-        with np.errstate(over='ignore', invalid='ignore'):
-            xn, yn = distort_normalized(xn, yn, (k1, k2, p1, p2, k3))
-            px = fx * xn + skew * yn + ppx
-            py = fy * yn + ppy
-        code = (px <= -1.0).view(np.uint8) * np.uint8(_SIDE_LEFT)
-        code |= (px >= width).view(np.uint8) * np.uint8(_SIDE_RIGHT)
-        code |= (py <= -1.0).view(np.uint8) * np.uint8(_SIDE_TOP)
-        code |= (py >= height).view(np.uint8) * np.uint8(_SIDE_BOTTOM)
-        code[invalid] = _SIDE_INVALID
-        return label, px, py, code
-
-    def evaluate_parallel(self, rays, rotations, min_chunk=16384):
-        """
-        Return :meth:`evaluate` of rays stored ``(3, N)``, split over :attr:`workers` threads.
-
-        numpy releases the GIL in its array operations, so two threads can use both
-        cores for the large arrays of a rebuild (``workers`` = 1 by default: on a busy
-        2-core machine the split does not pay).
-        """
-        count = rays.shape[1]
-        if self.workers < 2 or count < 2 * min_chunk:
-            return self._evaluate_soa(rays, rotations)
-        if self._pool is None:
-            from concurrent.futures import ThreadPoolExecutor
-
-            self._pool = ThreadPoolExecutor(max_workers=self.workers,
-                                            thread_name_prefix='lookup')
-        bounds = np.linspace(0, count, self.workers + 1).astype(int)
-        futures = [self._pool.submit(self._evaluate_soa, rays[:, a:b], rotations)
-                   for a, b in zip(bounds[:-1], bounds[1:])]
-        results = [f.result() for f in futures]
-        return tuple(np.concatenate([r[k] for r in results]) for k in range(4))
-
-    def to_mosaic(self, label, x, y, side):
-        """Mosaic coordinates ``(N, 2)`` float32 of :meth:`evaluate`'s output."""
-        out = np.empty((len(label), 2), np.float32)
-        out[:, 0] = x + self._offsets[label, 0]
-        out[:, 1] = y + self._offsets[label, 1]
-        out[side != 0] = OUTSIDE
-        return out
-
-    def _pixel_rays(self, u, v):
-        """Rays ``(3, ...)`` float32 of integer pixel coordinates from the separable tables."""
-        u, v = u + self._pad, v + self._pad
-        ce = self._cos_el[v]
-        rays = np.empty((3,) + np.broadcast(u, v).shape, np.float32)
-        np.multiply(ce, self._sin_az[u], out=rays[0])
-        rays[1] = -self._sin_el[v]
-        np.multiply(ce, self._cos_az[u], out=rays[2])
-        return rays
-
     # -- builders -------------------------------------------------------------------------
-    def build_exact(self, roll, pitch, with_labels=False, rows_per_chunk=8):
-        """
-        Evaluate every pixel: map ``(H, W, 2)`` float32 (and labels, -1 where unseen).
-
-        The reference against which the fast builder is tested.
-        """
-        q = self.camera_rotations(roll, pitch)
-        h, w = self.geometry.height, self.geometry.width
-        out = np.empty((h, w, 2), np.float32)
-        labels = np.empty((h, w), np.int8) if with_labels else None
-        cols = np.arange(w)
-        for r0 in range(0, h, rows_per_chunk):
-            rows = np.arange(r0, min(h, r0 + rows_per_chunk))
-            rays = self._pixel_rays(cols[None, :], rows[:, None]).reshape(3, -1)
-            label, x, y, side = self._evaluate_soa(rays, q)
-            out[rows[0]:rows[-1] + 1] = self.to_mosaic(label, x, y, side).reshape(
-                len(rows), w, 2)
-            if with_labels:
-                labels[rows[0]:rows[-1] + 1] = np.where(side == 0, label, -1).reshape(
-                    len(rows), w)
-        covered = np.nonzero((out[..., 0] != OUTSIDE).any(axis=1))[0]
-        self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
-        return (out, labels) if with_labels else out
-
-    def build_blend(self, roll, pitch, width_rad, rows_per_chunk=8):
-        """
-        Exact maps for feathered blending: ``(map1, map2, weight1)``.
-
-        Among the cameras whose frame holds a ray, ``map1`` samples the one with the
-        closest optical axis (eq. 6 restricted to cameras that see the ray) and ``map2``
-        the next one (:data:`OUTSIDE` if none). ``weight1`` (float32) is 1 farther than
-        ``width_rad / 2`` from the seam plane between the two axes and falls linearly to
-        0.5 on it, so the panorama is continuous across the seam.
-        """
-        q = self.camera_rotations(roll, pitch)
-        h, w = self.geometry.height, self.geometry.width
-        n = len(self.rig)
-        map1 = np.full((h, w, 2), OUTSIDE, np.float32)
-        map2 = np.full((h, w, 2), OUTSIDE, np.float32)
-        weight = np.ones((h, w), np.float32)
-        axes = q[:, 2, :]
-        cols = np.arange(w)
-        for r0 in range(0, h, rows_per_chunk):
-            rows = np.arange(r0, min(h, r0 + rows_per_chunk))
-            rays = self._pixel_rays(cols[None, :], rows[:, None]).reshape(3, -1)
-            count = rays.shape[1]
-            score = np.full((count, n), -np.inf, np.float32)
-            coords = np.empty((n, count, 2), np.float32)
-            for i in range(n):
-                _, x, y, side = self._evaluate_soa(rays, q, only=i)
-                seen = side == 0
-                a = axes[i].astype(np.float32)
-                score[seen, i] = (a[0] * rays[0] + a[1] * rays[1] + a[2] * rays[2])[seen]
-                coords[i] = self.to_mosaic(np.full(count, i), x, y, side)
-            order = np.argsort(-score, axis=1)[:, :2]
-            best, second = order[:, 0], order[:, 1] if n > 1 else order[:, 0]
-            index = np.arange(count)
-            has1 = np.isfinite(score[index, best])
-            has2 = (np.isfinite(score[index, second]) & (second != best)) & has1
-            m1 = np.where(has1[:, None], coords[best, index], OUTSIDE)
-            m2 = np.where(has2[:, None], coords[second, index], OUTSIDE)
-            gap = np.linalg.norm(axes[best] - axes[second], axis=1)
-            dist = np.arcsin(np.clip((score[index, best] - np.where(has2, score[
-                index, second], 0.0)) / np.maximum(gap, 1e-9), 0.0, 1.0))
-            w1 = np.where(has2, np.clip(0.5 + dist / width_rad, 0.5, 1.0), 1.0)
-            sl = slice(rows[0], rows[-1] + 1)
-            map1[sl] = m1.reshape(len(rows), w, 2)
-            map2[sl] = m2.reshape(len(rows), w, 2)
-            weight[sl] = w1.reshape(len(rows), w)
-        covered = np.nonzero((map1[..., 0] != OUTSIDE).any(axis=1))[0]
-        self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
-        return map1, map2, weight
-
     def classify(self, q, node_rows=None):
         """
         Classify the cells from the exact values at the nodes (and, where needed, more).

@@ -15,7 +15,7 @@ bilinearly; :func:`render_panorama_truth` samples the same texture straight into
 panorama geometry, i.e. what a perfect stitcher with the true attitude would produce.
 """
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rotation_from_rpy_radians
-from accelcal_ros.panorama.lookup import normalized_from_pixels, reference_heading_rad
+from accelcal_ros.panorama.rig_projection import normalized_from_pixels, reference_heading_rad
 import numpy as np
 
 SKY_BGR = (235, 205, 170)

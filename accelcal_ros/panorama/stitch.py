@@ -2,7 +2,7 @@
 The stitcher: camera images + attitude -> levelled panorama, one ``cv2.remap`` per frame.
 
 Camera images are copied into a mosaic (all images side by side, black gaps between
-them, see :class:`~.lookup.MosaicLayout`); a lookup map built by
+them, see :class:`~.mosaic.MosaicLayout`); a lookup map built by
 :meth:`~.lookup.LookupBuilder.build_fast` turns the mosaic into the panorama with one
 bilinear ``cv2.remap``, zero outside every frame (paper A, steps 5-6). The map is
 rebuilt only when the reference camera's tilt moves by more than
@@ -22,7 +22,8 @@ import time
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
-from accelcal_ros.panorama.lookup import LookupBuilder, tilt_matrix
+from accelcal_ros.panorama.lookup import LookupBuilder
+from accelcal_ros.panorama.rig_projection import tilt_matrix
 import numpy as np
 
 
