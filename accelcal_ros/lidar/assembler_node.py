@@ -15,7 +15,7 @@ import threading
 import time
 
 from accelcal_ros.errors import AccelcalError
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.lidar.params import CLOUD_ASSEMBLER_PARAMS as SPECS
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import array_to_pointcloud2, pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
@@ -29,37 +29,6 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
-
-
-def _len3(value):
-    return None if len(value) == 3 else 'expected 3 values'
-
-
-SPECS = [
-    ParamSpec('boresight_file', '', 'boresight YAML (R or rpy_deg, LiDAR -> IMU); empty = '
-              'use boresight_rpy_deg', read_only=True),
-    ParamSpec('boresight_rpy_deg', [0.0, 0.0, 0.0], 'boresight LiDAR -> IMU (roll pitch '
-              'yaw, deg, REP-103 fixed axes) when no file is given', validator=_len3,
-              read_only=True, unit='deg'),
-    ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame',
-              validator=_len3, read_only=True, unit='m'),
-    ParamSpec('time_field', '', 'per-point time field (empty = time, t or timestamp)',
-              read_only=True),
-    ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
-    ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply or .pcd; '
-              'empty = none)'),
-    ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
-              minimum=0.0, maximum=10.0, unit='s'),
-    ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,
-              maximum=3600.0, unit='s', read_only=True),
-    ParamSpec('points_reliable', False, 'subscribe to points with reliable QoS (drivers that '
-              'publish reliable; large scans are retransmitted instead of lost)',
-              read_only=True),
-    ParamSpec('queue_depth', 20, 'scans queued by the subscription and the publisher',
-              minimum=1, maximum=1000, read_only=True),
-    ParamSpec('max_points', 5000000, 'accumulated points kept for saving', minimum=1000,
-              maximum=200000000, read_only=True),
-]
 
 
 class CloudAssemblerNode(Node):

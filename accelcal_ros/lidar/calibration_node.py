@@ -16,7 +16,7 @@ answers carry the result.
 import threading
 
 from accelcal_ros.errors import AccelcalError
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.lidar.params import capture_settings, LIDAR_CALIBRATION_PARAMS as SPECS
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
@@ -26,47 +26,6 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, PointCloud2
 from std_srvs.srv import Trigger
-
-
-def _rpy_ok(value):
-    return None if len(value) in (0, 3) else 'give 3 angles (roll pitch yaw, deg) or none'
-
-
-SPECS = [
-    ParamSpec('output_file', 'boresight.yaml', 'boresight YAML written by finish'),
-    ParamSpec('prior_rpy_deg', [], 'nominal mounting LiDAR -> IMU (roll pitch yaw, deg, '
-              'REP-103 fixed axes); empty = find the floor without a prior',
-              kind='double_array', validator=_rpy_ok, unit='deg'),
-    ParamSpec('calibration_file', '', 'accelerometer calibration applied to the IMU '
-              '(empty = none)', read_only=True),
-    ParamSpec('auto_capture', True, 'capture a position each time the rig rests'),
-    ParamSpec('min_static_s', 1.0, 'stillness needed before a capture', minimum=0.1,
-              maximum=60.0, unit='s'),
-    ParamSpec('gyro_std_threshold_rad_s', 0.01, 'still when every gyro axis varies less',
-              minimum=1e-5, maximum=1.0, unit='rad/s'),
-    ParamSpec('accel_std_threshold_m_s2', 0.08, 'still (no gyro) when every accelerometer '
-              'axis varies less', minimum=1e-4, maximum=5.0, unit='m/s^2'),
-    ParamSpec('clouds_per_capture', 1, 'scans merged per position', minimum=1, maximum=100),
-    ParamSpec('points_reliable', False, 'subscribe to points with reliable QoS (drivers that '
-              'publish reliable, e.g. velodyne; large scans are then retransmitted instead of '
-              'lost); default best effort (sensor data)', read_only=True),
-    ParamSpec('queue_depth', 100, 'scans queued by the points subscription: the backlog a '
-              'stalled process catches up on (keep it well above clouds_per_capture)',
-              minimum=1, maximum=1000, read_only=True),
-    ParamSpec('imu_queue_depth', 2000, 'IMU samples queued by the imu/data_raw subscription '
-              '(2000 = 40 s at 50 Hz, 5 s at 400 Hz)', minimum=10, maximum=100000,
-              read_only=True),
-    ParamSpec('min_positions', 3, 'positions needed before finish solves', minimum=2,
-              maximum=1000),
-    ParamSpec('distance_threshold_m', 0.05, 'MSAC inlier distance', minimum=0.001,
-              maximum=1.0, unit='m'),
-    ParamSpec('max_tilt_deg', 15.0, 'floor normal within this of the expected up (prior)',
-              minimum=0.5, maximum=60.0, unit='deg'),
-    ParamSpec('max_range_m', 30.0, 'crop radius of the floor search', minimum=1.0,
-              maximum=200.0, unit='m'),
-    ParamSpec('weighting', 'equal', 'pair weights: equal (paper) or from the noise of each pair',
-              choices=('noise', 'equal')),
-]
 
 
 class LidarCalibrationNode(Node):
@@ -106,12 +65,7 @@ class LidarCalibrationNode(Node):
     def _apply_settings(self, values=None):
         p = dict(self.params.values)
         p.update(values or {})
-        s = self._settings
-        s.min_static_s = p['min_static_s']
-        s.gyro_std_threshold_rad_s = p['gyro_std_threshold_rad_s']
-        s.accel_std_threshold_m_s2 = p['accel_std_threshold_m_s2']
-        s.clouds_per_capture = p['clouds_per_capture']
-        s.auto = p['auto_capture']
+        capture_settings(p, self._settings)
 
     def _on_change(self, name, value):
         with self._lock:
