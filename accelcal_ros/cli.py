@@ -29,9 +29,16 @@ FEATURE_CLI_MODULES = (
     'accelcal_ros.lidar.cli',
 )
 
-#: argument names (``dest``) that are outputs; every other argument naming an existing
-#: file is an input the command must not overwrite
+#: argument names (``dest``) that are outputs (also any ``output_*``, ``*_output``,
+#: ``out_*``, ``*_out``, ``*_plot``); every other argument naming an existing file is an
+#: input the command must not overwrite
 OUTPUT_DESTS = frozenset({'output', 'plot', 'json', 'out', 'out_dir', 'output_dir'})
+
+
+def is_output_dest(dest: str) -> bool:
+    """Return whether an argument (by its ``dest``) names something the command writes."""
+    return (dest in OUTPUT_DESTS or dest.startswith(('output_', 'out_'))
+            or dest.endswith(('_output', '_out', '_plot')))
 
 EPILOG = ('Errors are printed as one line and exit with status 1 (2 for a bad command '
           'line). Set ACCELCAL_DEBUG=1 to see the Python traceback of an unexpected error. '
@@ -74,7 +81,7 @@ def input_paths(args):
     """Return the arguments of a parsed command that name existing files (not outputs)."""
     paths = []
     for dest, value in vars(args).items():
-        if dest in OUTPUT_DESTS:
+        if is_output_dest(dest):
             continue
         for item in (value if isinstance(value, (list, tuple)) else [value]):
             if isinstance(item, (str, os.PathLike)) and item and os.path.isfile(item):
@@ -85,7 +92,7 @@ def input_paths(args):
 def output_paths(args):
     """Return the output arguments of a parsed command that are set."""
     return [os.fspath(v) for dest, v in vars(args).items()
-            if dest in OUTPUT_DESTS and isinstance(v, (str, os.PathLike)) and v]
+            if is_output_dest(dest) and isinstance(v, (str, os.PathLike)) and v]
 
 
 def run_command(args):
@@ -116,6 +123,10 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('accelcal: interrupted', file=sys.stderr)
         return 130
+    except UnicodeDecodeError as exc:  # a text stream (stdin, --input) that is not UTF-8
+        print(f'accelcal: error: input is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} '
+              f'at offset {exc.start} of a block); is this the right file?', file=sys.stderr)
+        return 1
     except OSError as exc:
         where = f'{exc.filename}: ' if exc.filename else ''
         print(f'accelcal: error: {where}{exc.strerror or exc}', file=sys.stderr)
