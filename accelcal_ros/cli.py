@@ -40,6 +40,7 @@ def is_output_dest(dest: str) -> bool:
     return (dest in OUTPUT_DESTS or dest.startswith(('output_', 'out_'))
             or dest.endswith(('_output', '_out', '_plot')))
 
+
 EPILOG = ('Errors are printed as one line and exit with status 1 (2 for a bad command '
           'line). Set ACCELCAL_DEBUG=1 to see the Python traceback of an unexpected error. '
           'No command writes over one of its input files.')
