@@ -1,0 +1,140 @@
+"""
+Per-camera intrinsics: ``K`` and OpenCV distortion from board views, or a camera_info file.
+
+Zhang's method through ``cv2.calibrateCameraExtended`` (the model ``k1, k2, p1, p2``;
+``k3`` fixed at 0 unless asked, as OpenCV advises for ordinary lenses). Pixel
+coordinates follow OpenCV: integer values at pixel centres. A view whose reprojection
+RMS exceeds ``max(min_drop_px, drop_factor x median)`` is dropped with the reason and
+the camera is calibrated again without it.
+
+``--intrinsics`` files are the YAML that ROS's camera_calibration writes
+(``image_width``, ``image_height``, ``camera_name``, ``camera_matrix: {rows, cols, data}``,
+``distortion_model: plumb_bob``, ``distortion_coefficients: {data}``).
+"""
+from dataclasses import dataclass, field
+from typing import Dict, List, Sequence, Tuple
+
+from accelcal_ros.errors import CalibrationError, FileFormatError
+from accelcal_ros.fileio import load_yaml_mapping
+import cv2
+import numpy as np
+
+MIN_VIEWS = 4
+
+
+@dataclass
+class Intrinsics:
+    """``K`` (3x3, px), ``D`` (5,), the view errors (px RMS per view id) and what was dropped."""
+
+    K: np.ndarray
+    D: np.ndarray
+    size: Tuple[int, int]
+    rms_px: float = float('nan')
+    view_rms_px: Dict[str, float] = field(default_factory=dict)
+    dropped: Dict[str, str] = field(default_factory=dict)
+    source: str = 'board views'
+
+
+def view_rms(object_points: np.ndarray, corners: np.ndarray, k: np.ndarray,
+             d: np.ndarray) -> Tuple[float, np.ndarray, np.ndarray]:
+    """Return ``(rms_px, rvec, tvec)`` of one view under fixed intrinsics (solvePnP)."""
+    ok, rvec, tvec = cv2.solvePnP(object_points, corners, k, d, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        ok, rvec, tvec = cv2.solvePnP(object_points, corners, k, d)
+    rvec, tvec = cv2.solvePnPRefineLM(object_points, corners, k, d, rvec, tvec)
+    px, _ = cv2.projectPoints(object_points, rvec, tvec, k, d)
+    err = np.linalg.norm(px.reshape(-1, 2) - corners, axis=1)
+    return float(np.sqrt(np.mean(err ** 2))), rvec.ravel(), tvec.ravel()
+
+
+def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.ndarray,
+                     size: Tuple[int, int], fix_k3: bool = True, min_drop_px: float = 0.5,
+                     drop_factor: float = 4.0) -> Intrinsics:
+    """
+    Calibrate one camera from its views ``{view id: corners (N, 2)}`` (board-frame order).
+
+    Raises :class:`CalibrationError` when fewer than 4 usable views remain.
+    """
+    ids = sorted(views)
+    dropped: Dict[str, str] = {}
+    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
+    obj = object_points.astype(np.float32)
+    for _ in range(3):
+        if len(ids) < MIN_VIEWS:
+            raise CalibrationError(
+                f'camera {name}: only {len(ids)} usable board view(s), need at least '
+                f'{MIN_VIEWS} for its intrinsics: add poses where {name} sees the whole board '
+                '(near the image corners and tilted), or give --intrinsics for it')
+        rms, k, d, _, _, _, _, per_view = cv2.calibrateCameraExtended(
+            [obj] * len(ids), [views[i].astype(np.float32) for i in ids], tuple(size),
+            None, None, flags=flags)
+        per_view = np.asarray(per_view, dtype=float).ravel()
+        limit = max(min_drop_px, drop_factor * float(np.median(per_view)))
+        bad = [(i, e) for i, e in zip(ids, per_view) if e > limit]
+        if not bad:
+            break
+        for i, e in bad:
+            dropped[i] = (f'reprojection RMS {e:.2f} px > {limit:.2f} px (blurred, moved or '
+                          'a wrong corner)')
+        ids = [i for i in ids if i not in dropped]
+    d5 = np.zeros(5)
+    d5[:min(5, np.size(d))] = np.ravel(d)[:5]
+    return Intrinsics(np.asarray(k, dtype=float), d5, tuple(size), float(rms),
+                      {i: float(e) for i, e in zip(ids, per_view)}, dropped)
+
+
+def _matrix(path: str, data: dict, key: str, shape: Sequence[int]) -> np.ndarray:
+    entry = data.get(key)
+    values = entry.get('data') if isinstance(entry, dict) else entry
+    try:
+        arr = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise FileFormatError(path, f'"{key}" must hold numbers, got {values!r}') from None
+    if arr.size not in shape or not np.all(np.isfinite(arr)):
+        wanted = ' or '.join(str(s) for s in shape)
+        raise FileFormatError(path, f'"{key}" needs {wanted} finite values, got {arr.size}')
+    return arr
+
+
+def load_camera_info(path: str) -> Tuple[str, Intrinsics]:
+    """Read a camera_calibration YAML; return ``(camera_name, Intrinsics)``."""
+    data = load_yaml_mapping(path, 'camera_info file')
+    try:
+        size = (int(data['image_width']), int(data['image_height']))
+    except (KeyError, TypeError, ValueError):
+        raise FileFormatError(path, 'needs integer image_width and image_height (the YAML '
+                              "ROS's camera_calibration writes)") from None
+    k = _matrix(path, data, 'camera_matrix', (9,)).reshape(3, 3)
+    if k[0, 0] <= 0 or k[1, 1] <= 0 or np.abs(k[2] - [0, 0, 1]).max() > 1e-9:
+        raise FileFormatError(path, f'camera_matrix is not a camera matrix: {k.tolist()}')
+    model = data.get('distortion_model', 'plumb_bob')
+    if model not in ('plumb_bob', 'rational_polynomial'):
+        raise FileFormatError(path, f'distortion_model {model!r} is not supported (plumb_bob)')
+    d = _matrix(path, data, 'distortion_coefficients', (0, 4, 5, 8)) \
+        if 'distortion_coefficients' in data else np.zeros(5)
+    if np.any(d[5:] != 0):
+        raise FileFormatError(path, 'only k1, k2, p1, p2, k3 are supported; k4..k6 must be 0')
+    d5 = np.zeros(5)
+    d5[:min(5, d.size)] = d[:5]
+    name = str(data.get('camera_name') or '')
+    return name, Intrinsics(k, d5, size, source=f'file {path}')
+
+
+def per_view_errors(intrinsics: Intrinsics, views: Dict[str, np.ndarray],
+                    object_points: np.ndarray) -> Dict[str, float]:
+    """Per-view reprojection RMS (px) under given intrinsics (solvePnP per view)."""
+    return {i: view_rms(object_points, c, intrinsics.K, intrinsics.D)[0]
+            for i, c in sorted(views.items())}
+
+
+def coverage_fraction(corner_sets: List[np.ndarray], size: Tuple[int, int],
+                      cells: Tuple[int, int] = (8, 6)) -> float:
+    """Fraction of an ``8 x 6`` grid of image cells that hold at least one detected corner."""
+    w, h = size
+    hit = np.zeros(cells[::-1], dtype=bool)
+    for corners in corner_sets:
+        c = np.asarray(corners).reshape(-1, 2)
+        col = np.clip((c[:, 0] / w * cells[0]).astype(int), 0, cells[0] - 1)
+        row = np.clip((c[:, 1] / h * cells[1]).astype(int), 0, cells[1] - 1)
+        hit[row, col] = True
+    return float(hit.mean())
