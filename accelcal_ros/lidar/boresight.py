@@ -43,7 +43,11 @@ from accelcal_ros.lidar.wahba import (_unit, check_constrained,  # noqa: F401
                                       pair_errors_deg, rotation_angle_deg,
                                       rotation_covariance, rpy_std_deg, solve_wahba,
                                       UnconstrainedBoresightError)
+from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+
+MAX_CALIBRATED_GRAVITY_ERROR = 0.03
+"""Largest relative deviation of |f| from 1 g after an accelerometer calibration."""
 
 
 @dataclass
@@ -54,6 +58,8 @@ class StaticPosition:
     points: np.ndarray
     gravity_m_s2: np.ndarray
     gravity_std_rad: float = 0.0
+    calibrated: bool = False
+    """True when an accelerometer calibration was applied: then |g| must be ~1 g."""
 
 
 @dataclass
@@ -118,10 +124,10 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
     ``max_pair_error_deg`` after a first solution, is dropped with the reason.
     """
     search = search or FloorSearch()
+    notes = calibration_fit_warnings(positions)
     if weighting not in ('noise', 'equal'):
         raise InputError(f'weighting must be noise or equal, got {weighting!r}')
     dropped = {}
-    notes = []
     valid = []
     for pos in positions:
         g = np.asarray(pos.gravity_m_s2, dtype=float)
@@ -139,9 +145,10 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
             raise CalibrationError(_too_few(valid, dropped))
         check_constrained([p.gravity_m_s2 for p, _ in valid], [p.name for p, _ in valid])
         cands = [PlaneSet.from_planes(find_planes(pts, search)) for _, pts in valid]
-        prior, choice, notes = select_floor(cands, [p.gravity_m_s2 for p, _ in valid],
-                                            tolerance_deg, height_tolerance_m,
-                                            max_tilt_deg=search.max_tilt_deg)
+        prior, choice, floor_notes = select_floor(cands, [p.gravity_m_s2 for p, _ in valid],
+                                                  tolerance_deg, height_tolerance_m,
+                                                  max_tilt_deg=search.max_tilt_deg)
+        notes += floor_notes
         for (pos, _), c in zip(valid, choice):
             if c < 0:
                 dropped[pos.name] = ('no plane consistent with the rotation found at the '
@@ -188,6 +195,33 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
     return BoresightResult(r, rpy, rpy_std_deg(r, cov), cov, names, normals, gravity,
                            weights, errors, holdout(normals, gravity, weights), dropped,
                            warn, inliers)
+
+
+def calibration_fit_warnings(positions, tolerance=MAX_CALIBRATED_GRAVITY_ERROR) -> List[str]:
+    """
+    Return a warning when calibrated gravity magnitudes are far from 1 g.
+
+    After a fitting accelerometer calibration every still position reads ``|f| = 1 g``
+    within a fraction of a percent; a calibration of another sensor (or with other axes or
+    units) moves it by percents and tilts the gravity directions, so floors disagree and
+    positions get dropped. Names the positions outside ``1 +- tolerance`` g.
+    """
+    bad = []
+    for pos in positions:
+        g = np.asarray(pos.gravity_m_s2, dtype=float).reshape(-1)
+        if not pos.calibrated or g.shape != (3,) or not np.all(np.isfinite(g)):
+            continue
+        ratio = float(np.linalg.norm(g) / STANDARD_GRAVITY_M_S2)
+        if abs(ratio - 1.0) > tolerance:
+            bad.append((pos.name, ratio))
+    if not bad:
+        return []
+    listed = ', '.join(f'{name} {ratio:.3f} g' for name, ratio in bad)
+    total = sum(1 for p in positions if p.calibrated)
+    return [f'the accelerometer calibration does not fit these IMU logs: after it |g| is '
+            f'{listed} at {len(bad)} of {total} positions (expected 1 g within '
+            f'{100 * tolerance:g} %); check that the calibration file belongs to this sensor '
+            f'and its axes and units (the gravity directions, hence the boresight, are biased)']
 
 
 def _too_few(kept, dropped):

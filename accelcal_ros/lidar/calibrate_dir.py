@@ -71,7 +71,8 @@ def load_positions(directory, model=None, skip_bad_files=False, static_options=N
                              'the minimum duration)')
             continue
         pts = xyz(cloud) if len(cloud) else np.zeros((0, 3))
-        positions.append(StaticPosition(name, pts, seg.gravity_m_s2, seg.direction_std_rad()))
+        positions.append(StaticPosition(name, pts, seg.gravity_m_s2, seg.direction_std_rad(),
+                                        calibrated=model is not None))
     return positions, dropped
 
 

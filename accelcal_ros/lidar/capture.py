@@ -239,7 +239,8 @@ class StaticCapture:
         std = float(np.linalg.norm(accel.std(axis=0)) / np.sqrt(len(accel) * 1.5)
                     / max(np.linalg.norm(gravity), 1e-9))
         name = f'pos{len(self.positions) + 1:02d}'
-        position = StaticPosition(name, np.vstack(period.clouds), gravity, std)
+        position = StaticPosition(name, np.vstack(period.clouds), gravity, std,
+                                  calibrated=self.model is not None)
         self.positions.append(position)
         period.captured = True
         period.clouds = []

@@ -337,7 +337,8 @@ def positions_for_calibration(protocol, model=None):
         seg = longest_static_segment(pos.imu.t, pos.imu.accel, pos.imu.gyro, model)
         gravity = seg.gravity_m_s2 if seg is not None else np.full(3, np.nan)
         std = seg.direction_std_rad() if seg is not None else 0.0
-        out.append(StaticPosition(pos.name, xyz(pos.cloud), gravity, std))
+        out.append(StaticPosition(pos.name, xyz(pos.cloud), gravity, std,
+                                  calibrated=model is not None))
     return out
 
 
