@@ -50,7 +50,8 @@ def write_protocol_bag(path, fmt, protocol, imu_topic='/imu/data',
                 ns = T0_NS + int(round(ti * 1e9))
                 if kind == 'imu':
                     writer.write(imu_topic, ns, writer.imu_message(
-                        ns, pos.imu.accel[k], 'imu_link', pos.imu.gyro[k], topic=imu_topic))
+                        ns, pos.imu.accel[k], 'imu_link',
+                        None if pos.imu.gyro is None else pos.imu.gyro[k], topic=imu_topic))
                 else:
                     writer.write(points_topic, ns, writer.pointcloud2_message(
                         ns, pos.cloud, 'velodyne', topic=points_topic))
