@@ -22,8 +22,9 @@ with the names ROS ``sensor_msgs/CameraInfo`` uses:
      \theta_d = \theta (1 + k_1 \theta^2 + k_2 \theta^4 + k_3 \theta^6 + k_4 \theta^8),
      \quad (x_d, y_d) = \frac{\theta_d}{r} (x, y)
 
-The inverses run Newton's method from the distorted point (a fixed number of steps, no
-branch per point), exact to about 1e-12 for real lenses within their frame.
+The inverses run Newton's method from the distorted point (at most ``iterations``
+steps, fewer once every residual is below :data:`CONVERGED`), exact to about 1e-12 for
+real lenses within their frame.
 """
 from typing import Sequence, Tuple
 
@@ -36,6 +37,9 @@ DISTORTION_MODELS = (PLUMB_BOB, RATIONAL_POLYNOMIAL, EQUIDISTANT)
 """Supported ``distortion_model`` names (ROS ``CameraInfo``)."""
 COEFFICIENT_COUNTS = {PLUMB_BOB: 5, RATIONAL_POLYNOMIAL: 8, EQUIDISTANT: 4}
 """Number of coefficients each model stores (shorter OpenCV lists are padded with 0)."""
+
+CONVERGED = 1e-15
+"""Newton stops early once every residual (normalised units) is at most this."""
 
 Array = np.ndarray
 
@@ -107,6 +111,8 @@ def undistort_normalized(xd: Array, yd: Array, distortion: Sequence,
         d = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
         det = a * d - b * b
         ex, ey = fx - xd, fy - yd
+        if ex.size and max(np.abs(ex).max(), np.abs(ey).max()) <= CONVERGED:
+            break
         x = x - (d * ex - b * ey) / det
         y = y - (a * ey - b * ex) / det
     return x, y
@@ -147,6 +153,8 @@ def undistort_equidistant_angle(xd: Array, yd: Array, distortion: Sequence,
     for _ in range(iterations):
         t2 = theta * theta
         value = theta * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) - theta_d
+        if value.size and np.abs(value).max() <= CONVERGED:
+            break
         slope = 1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + 9.0 * k4 * t2)))
         theta = theta - value / slope
     safe = np.where(theta_d > 1e-15, theta_d, 1.0)

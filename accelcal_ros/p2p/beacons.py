@@ -217,8 +217,8 @@ def order_blobs(blobs: list, order: str, camera: Optional[CameraModel] = None,
         if camera is not None and down is not None:
             right = np.cross(np.asarray(down, dtype=float), [0.0, 0.0, 1.0])
             if np.linalg.norm(right) > 1e-6 and np.all(np.isfinite(right)):
-                x, y = camera.normalized_from_pixels(np.array([a.u, b.u]),
-                                                     np.array([a.v, b.v]))
+                x, y = camera.distorted_from_pixels(np.array([a.u, b.u]),
+                                                    np.array([a.v, b.v]))
                 key_a, key_b = (float(k) for k in right[0] * x + right[1] * y)
         first = a if key_a <= key_b else b
         if order == 'right_to_left':
