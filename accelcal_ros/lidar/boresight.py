@@ -230,19 +230,55 @@ def _too_few(kept, dropped):
             f'different tilts to constrain all angles); dropped: {reasons}')
 
 
-def load_boresight(path):
-    """Return the 3x3 rotation (LiDAR -> IMU) from a boresight YAML (``R`` or ``rpy_deg``)."""
+def load_boresight(path) -> np.ndarray:
+    """
+    Return the 3x3 rotation (LiDAR -> IMU) from a boresight YAML (``R`` and/or ``rpy_deg``).
+
+    Every field used is checked here, once, naming file and field: ``R`` 9 finite numbers
+    forming a rotation (1e-4 tolerance), ``rpy_deg`` 3 finite numbers with roll and yaw in
+    [-180, 180] and pitch in [-90, 90] deg; when both are present they must agree within
+    0.01 deg (an edited ``rpy_deg`` beside a stale ``R`` is refused, not silently ignored).
+    """
     from accelcal_ros.errors import FileFormatError
     from accelcal_ros.fileio import load_yaml_mapping
     from accelcal_ros.frames import rotation_from_rpy_radians
 
     data = load_yaml_mapping(path, 'boresight file')
+    if 'R' not in data and 'rpy_deg' not in data:
+        raise FileFormatError(path, 'boresight file has neither R (9 values) nor rpy_deg (3)')
+    from_r = from_rpy = None
+    if 'R' in data:
+        try:
+            from_r = rotation_matrix_from_list(_numbers(data['R'], 9, 'R'), 'R', tolerance=1e-4)
+        except InputError as exc:
+            raise FileFormatError(path, f'field {exc}') from None
+    if 'rpy_deg' in data:
+        try:
+            rpy = _numbers(data['rpy_deg'], 3, 'rpy_deg')
+        except InputError as exc:
+            raise FileFormatError(path, f'field {exc}') from None
+        limits = (180.0, 90.0, 180.0)
+        for name, value, limit in zip(('roll', 'pitch', 'yaw'), rpy, limits):
+            if abs(value) > limit:
+                raise FileFormatError(path, f'field rpy_deg: {name} {value:g} deg is outside '
+                                            f'[-{limit:g}, {limit:g}]')
+        from_rpy = rotation_from_rpy_radians(*np.radians(rpy))
+    if from_r is not None and from_rpy is not None:
+        gap = rotation_angle_deg(from_r, from_rpy)
+        if gap > 0.01:
+            raise FileFormatError(path, f'fields R and rpy_deg disagree by {gap:.3f} deg: fix '
+                                        'or delete one of them')
+    return from_r if from_r is not None else from_rpy
+
+
+def _numbers(values, count, name) -> np.ndarray:
+    """Return ``count`` finite floats from a YAML list, else InputError naming ``name``."""
     try:
-        if 'R' in data:
-            return rotation_matrix_from_list(data['R'], 'R', tolerance=1e-4)
-        if 'rpy_deg' in data:
-            rpy = np.radians(np.asarray(data['rpy_deg'], dtype=float).reshape(3))
-            return rotation_from_rpy_radians(*rpy)
-    except (InputError, ValueError, TypeError) as exc:
-        raise FileFormatError(path, f'bad boresight: {exc}') from None
-    raise FileFormatError(path, 'boresight file has neither R (9 values) nor rpy_deg (3)')
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f'{name}: expected {count} numbers, got {values!r:.80}') from None
+    if arr.size != count:
+        raise InputError(f'{name}: expected {count} numbers, got {arr.size}')
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f'{name}: contains NaN or infinity ({arr.tolist()})')
+    return arr

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import os
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.frames import rotation_matrix_from_list
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -122,7 +123,7 @@ def georeference(points, times, poses, boresight, lever_arm_m=(0.0, 0.0, 0.0), t
     times = np.asarray(times, dtype=np.float64).reshape(-1)
     if times.shape[0] != pts.shape[0]:
         raise InputError(f'{pts.shape[0]} points but {times.shape[0]} per-point times')
-    boresight = np.asarray(boresight, dtype=float).reshape(3, 3)
+    boresight = rotation_matrix_from_list(boresight, 'boresight', tolerance=1e-4)
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
     if not np.all(np.isfinite(lever)):
         raise InputError('lever arm contains NaN or infinity')

@@ -13,6 +13,10 @@ from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
 import numpy as np
 
 POSE_COLUMNS = ('t', 'x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
+MAX_POSITION_M = 1e8
+"""Largest plausible coordinate (m): ECEF and UTM stay below 1e7 m."""
+MAX_TIME_S = 1e11
+"""Largest plausible time (s): the year 5138 in Unix time; nanosecond stamps exceed it."""
 
 
 @dataclass
@@ -52,6 +56,15 @@ def check_pose_arrays(t, position, quat):
     bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
     if bad.size:
         return int(bad[0]), 'NaN or infinite value'
+    bad = np.flatnonzero(np.any(np.abs(position) > MAX_POSITION_M, axis=1))
+    if bad.size:
+        k = int(bad[0])
+        return k, (f'position {position[k].tolist()} m is beyond {MAX_POSITION_M:g} m from '
+                   'the origin (wrong units or columns?)')
+    bad = np.flatnonzero(np.abs(t) > MAX_TIME_S)
+    if bad.size:
+        return int(bad[0]), (f'time {t[bad[0]]:g} s is beyond {MAX_TIME_S:g} s (not seconds? '
+                             'nanoseconds must be divided by 1e9)')
     norms = np.linalg.norm(quat, axis=1)
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
     if bad.size:
