@@ -24,7 +24,7 @@ def _samples(n=400):
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
-    """A small IMU bag in each format, with a second Imu topic and a PointCloud2 topic."""
+    """Write a small IMU bag in each format, with a second Imu topic and a PointCloud2 topic."""
     root = tmp_path_factory.mktemp('bad')
     t, accel = _samples()
     out = {}

@@ -14,7 +14,7 @@ FIGURES = ('scale', 'bias', 'misalignment', 'scale_std', 'bias_std', 'residual_r
 
 @pytest.fixture(scope='module')
 def recording(tmp_path_factory):
-    """A simulated calibration session (24 positions) as CSV and as a bag in each format."""
+    """Record a simulated calibration session (24 positions) as CSV and as bags."""
     root = tmp_path_factory.mktemp('calib')
     csv = root / 'rec.csv'
     assert main(['record', '-o', str(csv), '--duration', '100', '--rate', '50']) == 0
@@ -41,7 +41,7 @@ def test_calibrate_from_bag_equals_csv(recording, fmt, tmp_path):
 
 @pytest.mark.parametrize('fmt', ('mcap', 'ros1'))
 def test_apply_writes_bag_with_calibrated_topic(recording, fmt, tmp_path):
-    """apply BAG -o BAG: the Imu topic calibrated (as apply to CSV), other topics copied."""
+    """Apply BAG -o BAG: the Imu topic calibrated (as apply to CSV), other topics copied."""
     src = recording['bags'][fmt]
     out = bag_path(tmp_path, 'out', fmt)
     csv_out = tmp_path / 'cal.csv'
@@ -78,7 +78,7 @@ def test_apply_refuses_other_bag_family(recording, tmp_path, capsys):
 
 
 def test_attitude_from_bag_equals_csv(recording, tmp_path):
-    """attitude BAG prints the rows of attitude CSV (times from the first sample)."""
+    """Attitude of a BAG prints the rows of attitude CSV (times from the first sample)."""
     a, b = tmp_path / 'a.csv', tmp_path / 'b.csv'
     assert main(['attitude', str(recording['csv']), '--calibration',
                  str(recording['yaml_csv']), '-o', str(a), '--every', '50']) == 0
@@ -91,7 +91,7 @@ def test_attitude_from_bag_equals_csv(recording, tmp_path):
 
 
 def test_record_bag_replays_as_the_driver(tmp_path):
-    """record --bag: /imu/data_raw, Imu, sensor-data QoS, frame, covariances as the driver."""
+    """Record --bag: /imu/data_raw, Imu, sensor-data QoS, frame, covariances as the driver."""
     out = tmp_path / 'rec'
     assert main(['record', '--bag', str(out), '--duration', '100', '--rate', '50']) == 0
     meta = (out / 'metadata.yaml').read_text()
