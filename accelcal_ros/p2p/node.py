@@ -199,8 +199,8 @@ class P2PNode(Node):
 
 
 def main(args=None):
-    """Run the ``p2p`` node."""
-    return run(P2PNode, args)
+    """Run the ``p2p`` node (events executor: the least CPU per received frame)."""
+    return run(P2PNode, args, executor='events')
 
 
 if __name__ == '__main__':

@@ -132,8 +132,11 @@ class StitcherNode(Node):
 
     # -- helpers --------------------------------------------------------------------------
     def _log(self, level, text):
-        logger = self.get_logger()
-        (logger.warning if level == 'warning' else logger.info)(text)
+        # one call site per severity: rclpy refuses a second severity at one call site
+        if level == 'warning':
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
 
     def _warn_once(self, key, text):
         if key not in self._warned:
@@ -284,8 +287,8 @@ class StitcherNode(Node):
 
 
 def main(args=None):
-    """Run the ``stitcher`` node."""
-    return run(StitcherNode, args)
+    """Run the ``stitcher`` node (events executor: the least CPU per received frame)."""
+    return run(StitcherNode, args, executor='events')
 
 
 if __name__ == '__main__':

@@ -1,0 +1,427 @@
+"""
+Benchmark of the ``stitcher`` node in a real ROS graph (issue 16): panoramas per second.
+
+One run, one machine, processes as a user has them:
+
+1. a **publisher process**: N cameras (bgr8, reliable, one stamp per set, as camera
+   drivers publish) at a size and rate, and an attitude stream at 100 Hz (sensor-data
+   QoS, the tilt moving so that the lookup is rebuilt for every set);
+2. the **floor**: a bare rclpy subscriber process to the N topics (no processing; the
+   node's default image QoS), counting complete frame sets per second -- deserialising
+   (what the issue measured) and raw (serialized bytes, what the node takes);
+3. the **node with defaults** (only ``rig_file`` and ``camera_topics`` set) and a
+   subscriber process of ``panorama`` with the node's publisher QoS (reliable, depth 2),
+   counting panoramas per second and the latency (frame stamp to panorama receipt).
+
+Targets (issue 16): the stitcher's rate at least 0.9x the floor's complete frame sets
+(same run), and 25 fps for 5 x 640x480 at 25 Hz. ``--stages`` prints the per-set cost
+of each stage in one process (take/deserialise, convert, copy into the mosaic, rebuild,
+remap, build + publish), the node's path before (deserialised messages, arrays copied)
+and now (raw buffers, numpy views, serialized output). Short runs are indicative only:
+Run: ``python benchmarks/bench_panorama_graph.py [--duration 10] [--configs 5x1280x960@10
+5x640x480@25] [--stages]``.
+"""
+import argparse
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.abspath(__file__)
+CONFIGS = ('5x1280x960@10', '5x640x480@25')
+
+
+# -- child processes --------------------------------------------------------------------
+def _init(name):
+    import rclpy
+
+    rclpy.init()
+    return rclpy, rclpy.create_node(name)
+
+
+def _spin_for(rclpy, node, seconds, stop=None):
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not (stop and stop()):
+        executor.spin_once(timeout_sec=0.05)
+
+
+def publisher(args):
+    """Publish N camera streams at ``rate`` (one stamp per set) and attitude at 100 Hz."""
+    import threading
+
+    from accelcal_ros.rosutil.images import array_to_image_msg
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import CameraInfo, Image
+
+    rclpy, node = _init('bench_cameras')
+    qos = QoSProfile(depth=args.pub_depth, reliability=ReliabilityPolicy.RELIABLE)
+    topics = args.topics.split(',')
+    pubs = [node.create_publisher(Image, t, qos) for t in topics]
+    att = node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
+    if args.image_npy:
+        images = [np.load(args.image_npy)] * len(topics)
+    else:
+        rng = np.random.default_rng(1)
+        shape = (args.height, args.width) + ((3,) if args.encoding == 'bgr8' else ())
+        images = [rng.integers(0, 256, shape, dtype=np.uint8) for _ in topics]
+    msgs = [array_to_image_msg(img, args.encoding, Image) for img in images]
+    for msg in msgs:
+        msg.header.frame_id = 'camera_optical'
+    info_pub, info = None, None
+    if args.camera_info:
+        values = json.loads(args.camera_info)
+        info_pub = node.create_publisher(CameraInfo, 'camera_info', 10)
+        info = CameraInfo(width=values['width'], height=values['height'],
+                          k=[float(v) for v in values['K']], d=[0.0] * 5,
+                          distortion_model='plumb_bob')
+        info.header.frame_id = 'camera_optical'
+    stop = threading.Event()
+
+    def attitude_loop():
+        start = time.time()
+        while not stop.is_set():
+            now = time.time()
+            msg = Vector3Stamped()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(now * 1e9), 10 ** 9)
+            t = now - start
+            wobble = math.radians(args.wobble_deg)
+            msg.vector.x = math.radians(args.roll_deg) + wobble * math.sin(0.5 * t)
+            msg.vector.y = math.radians(args.pitch_deg) + wobble * math.sin(0.3 * t)
+            att.publish(msg)
+            stop.wait(0.01)
+
+    thread = threading.Thread(target=attitude_loop, daemon=True)
+    thread.start()
+    period = 1.0 / args.rate
+    next_t = time.monotonic() + 0.5
+    deadline = time.monotonic() + args.duration
+    while time.monotonic() < deadline:
+        delay = next_t - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        next_t += period
+        sec, nanosec = divmod(int(time.time() * 1e9), 10 ** 9)
+        if info_pub is not None:
+            info.header.stamp.sec, info.header.stamp.nanosec = sec, nanosec
+            info_pub.publish(info)
+        for pub, msg in zip(pubs, msgs):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            pub.publish(msg)
+    stop.set()
+    thread.join()
+    rclpy.shutdown()
+
+
+def bare(args):
+    """Subscribe the N topics without processing; count complete frame sets."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import deserialize_message  # noqa: F401 - rclpy ready
+    from sensor_msgs.msg import Image
+
+    rclpy, node = _init('bench_bare')
+    qos = QoSProfile(depth=args.sub_depth, reliability=ReliabilityPolicy.RELIABLE)
+    topics = args.topics.split(',')
+    seen, state = {}, {'complete': 0, 'first': None, 'frames': 0}
+
+    def on_frame(stamp):
+        now = time.monotonic()
+        if state['first'] is None:
+            state['first'] = now
+        if now - state['first'] < args.warmup:
+            return
+        state['frames'] += 1
+        seen[stamp] = seen.get(stamp, 0) + 1
+        if seen[stamp] == len(topics):
+            state['complete'] += 1
+            del seen[stamp]
+
+    for topic in topics:
+        if args.raw:
+            from accelcal_ros.rosutil.images import parse_image_cdr
+
+            node.create_subscription(Image, topic, lambda d: on_frame(
+                parse_image_cdr(d).stamp_s), qos, raw=True)
+        else:
+            node.create_subscription(Image, topic, lambda m: on_frame(
+                (m.header.stamp.sec, m.header.stamp.nanosec)), qos)
+    started = time.monotonic()
+    _spin_for(rclpy, node, 60.0, lambda: state['first'] is not None)
+    _spin_for(rclpy, node, args.warmup + args.duration)
+    span = args.duration
+    print(json.dumps({'sets_per_s': state['complete'] / span,
+                      'frames_per_s': state['frames'] / span,
+                      'waited_s': time.monotonic() - started - args.warmup - span}))
+    rclpy.shutdown()
+
+
+def sink(args):
+    """Count messages of ``--topic`` (Image raw, or PoseStamped) and their latency."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    rclpy, node = _init('bench_sink')
+    qos = QoSProfile(depth=args.sub_depth, reliability=ReliabilityPolicy.RELIABLE)
+    state = {'first': None, 'count': 0, 'latency': [], 'diag': {}}
+
+    def on_msg(stamp_s):
+        now = time.monotonic()
+        if state['first'] is None:
+            state['first'] = now
+        if now - state['first'] < args.warmup:
+            return
+        state['count'] += 1
+        state['latency'].append(time.time() - stamp_s)
+
+    if args.msg_type == 'image':
+        from accelcal_ros.rosutil.images import parse_image_cdr
+        from sensor_msgs.msg import Image
+
+        node.create_subscription(Image, args.topic, lambda d: on_msg(
+            parse_image_cdr(d).stamp_s), qos, raw=True)
+    else:
+        from geometry_msgs.msg import PoseStamped
+
+        node.create_subscription(PoseStamped, args.topic, lambda m: on_msg(
+            m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec), qos)
+
+    def on_diag(msg):
+        for status in msg.status:
+            if status.name.startswith(args.diag_prefix):
+                state['diag'] = {kv.key: kv.value for kv in status.values}
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    _spin_for(rclpy, node, 90.0, lambda: state['first'] is not None)
+    _spin_for(rclpy, node, args.warmup + args.duration)
+    lat = sorted(state['latency']) or [math.nan]
+    print(json.dumps({'per_s': state['count'] / args.duration,
+                      'latency_ms': 1e3 * statistics.median(lat),
+                      'latency_p90_ms': 1e3 * lat[int(0.9 * (len(lat) - 1))],
+                      'diagnostics': state['diag']}))
+    rclpy.shutdown()
+
+
+# -- the parent -------------------------------------------------------------------------
+def child(role, *options):
+    """Start this script as ``role`` (a process); stdout is captured."""
+    return subprocess.Popen([sys.executable, HERE, '--role', role, *map(str, options)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def result_of(proc, timeout):
+    """Return the JSON a child printed, or {'error': ...}."""
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    for line in reversed(out.splitlines()):
+        if line.startswith('{'):
+            return json.loads(line)
+    return {'error': (err or out).strip().splitlines()[-3:]}
+
+
+def isolated_domain():
+    """Give this run its own ROS domain (localhost only); returns the holder."""
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    try:
+        from accelcal_ros.demo.domain import allocate_domain_id
+    except ImportError:
+        return None
+    holder = allocate_domain_id()
+    os.environ['ROS_DOMAIN_ID'] = str(holder.domain_id)
+    return holder
+
+
+def run_graph(publisher_options, phases, duration, warmup):
+    """
+    Run the publisher for every phase; ``phases``: ``[(label, start)]``.
+
+    ``start()`` returns ``(processes to stop, the process whose JSON is the result)``.
+    Returns ``{label: result}``.
+    """
+    total = len(phases) * (duration + warmup + 25.0) + 10.0
+    pub = child('publisher', *publisher_options, '--duration', total)
+    results = {}
+    try:
+        for label, start in phases:
+            extra, measured = start()
+            try:
+                results[label] = result_of(measured, duration + warmup + 120.0)
+            finally:
+                for proc in extra:
+                    proc.stop() if hasattr(proc, 'stop') else proc.kill()
+    finally:
+        pub.kill()
+        pub.communicate()
+    return results
+
+
+def graph_config(config, duration, warmup, workdir):
+    """Measure one ``NxWxH@RATE`` configuration; returns the results by phase."""
+    from accelcal_ros.demo.graph import NodeProcess
+    from accelcal_ros.panorama.rig import ring_rig, save_rig
+
+    count, size = config.split('x', 1)
+    size, rate = size.split('@')
+    width, height = (int(v) for v in size.split('x'))
+    count, rate = int(count), float(rate)
+    rig_path = os.path.join(workdir, f'rig_{count}x{width}x{height}.yaml')
+    save_rig(rig_path, ring_rig(count, width, height, 1100.0 * width / 1280.0, 36.0))
+    topics = ','.join(f'cam{i}/image_raw' for i in range(count))
+    common = ['--topics', topics, '--duration', duration, '--warmup', warmup]
+
+    def bare_phase(raw):
+        return lambda: ([], child('bare', *common, *(['--raw'] if raw else [])))
+
+    def node_phase():
+        node = NodeProcess('stitcher', {'rig_file': rig_path, 'camera_topics':
+                                        topics.split(',')}, log_dir=workdir)
+        return [node], child('sink', '--topic', 'panorama', '--msg-type', 'image',
+                             '--diag-prefix', 'stitcher: panorama', '--duration', duration,
+                             '--warmup', warmup)
+
+    options = ['--topics', topics, '--width', width, '--height', height, '--rate', rate,
+               '--encoding', 'bgr8', '--wobble-deg', 2.0, '--pitch-deg', 10.0]
+    return run_graph(options, [('floor (deserialised)', bare_phase(False)),
+                               ('floor (raw)', bare_phase(True)),
+                               ('stitcher', node_phase)], duration, warmup)
+
+
+def report(config, results, target_fps=None, ratio=0.9, what='panoramas'):
+    """Print one configuration's figures against the targets."""
+    floor = results.get('floor (deserialised)', {})
+    floor_raw = results.get('floor (raw)', {})
+    node = results.get('stitcher', results.get('p2p', {}))
+    print(f'\n{config}')
+    for label, res in results.items():
+        print(f'  {label:22s} {json.dumps(res)}')
+    if 'per_s' not in node or 'sets_per_s' not in floor:
+        print('  incomplete run: see the errors above')
+        return
+    best_floor = max(floor['sets_per_s'], floor_raw.get('sets_per_s', 0.0))
+    print(f'  {what} per second {node["per_s"]:.2f}, floor {floor["sets_per_s"]:.2f} '
+          f'(raw {floor_raw.get("sets_per_s", math.nan):.2f}) complete sets/s: ratio '
+          f'{node["per_s"] / max(floor["sets_per_s"], 1e-9):.2f} (target >= {ratio}; vs '
+          f'the best floor {node["per_s"] / max(best_floor, 1e-9):.2f}); latency median '
+          f'{node["latency_ms"]:.0f} ms, p90 {node["latency_p90_ms"]:.0f} ms')
+    if target_fps:
+        print(f'  target {target_fps} fps: {"met" if node["per_s"] >= target_fps else "NOT met"}')
+
+
+# -- per-stage cost in one process ------------------------------------------------------
+def stages(config, repeats):
+    """Print each stage's cost per frame set, the node's path before and now."""
+    import cv2
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import ring_rig
+    from accelcal_ros.panorama.stitch import Stitcher
+    from accelcal_ros.rosutil.images import array_to_image_msg, image_cdr, image_from_cdr
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import Image
+
+    cv2.setNumThreads(2)
+    count, size = config.split('x', 1)
+    size = size.split('@')[0]
+    width, height = (int(v) for v in size.split('x'))
+    count = int(count)
+    rig = ring_rig(count, width, height, 1100.0 * width / 1280.0, 36.0)
+    stitcher = Stitcher(rig, PanoramaGeometry(3600, 2400))
+    rng = np.random.default_rng(0)
+    wire = [serialize_message(array_to_image_msg(
+        rng.integers(0, 256, (height, width, 3), dtype=np.uint8), 'bgr8', Image))
+        for _ in range(count)]
+    times = {}
+
+    def timed(name, func, *a):
+        start = time.perf_counter()
+        out = func(*a)
+        times.setdefault(name, []).append(time.perf_counter() - start)
+        return out
+
+    def old_convert(msg):
+        buf = np.frombuffer(bytes(msg.data), np.uint8)       # as the node did before
+        return np.ascontiguousarray(buf.reshape(msg.height, msg.step)[:, :width * 3]
+                                    ).reshape(msg.height, width, 3)
+
+    def old_publish(panorama):
+        return serialize_message(array_to_image_msg(panorama, 'bgr8', Image))
+
+    for k in range(repeats):
+        msgs = [timed('before: deserialise', lambda: [deserialize_message(w, Image)
+                                                      for w in wire])][0]
+        images = timed('before: convert (copies)', lambda: [old_convert(m) for m in msgs])
+        views = timed('now: parse + views', lambda: [image_from_cdr(w)[1] for w in wire])
+        timed('copy into the mosaic', lambda: [stitcher.set_image(i, v)
+                                               for i, v in enumerate(views)])
+        timed('lookup rebuild', stitcher.set_attitude, math.radians(0.1 * k),
+              math.radians(10.0), True)
+        panorama = timed('remap', stitcher.render)
+        timed('before: build + serialise', old_publish, panorama)
+        timed('now: serialise (image_cdr)', image_cdr, panorama, 'bgr8', 1, 2, 'panorama')
+        timed('JPEG (compressed_output)', cv2.imencode, '.jpg', panorama,
+              [cv2.IMWRITE_JPEG_QUALITY, 80])
+        del images
+    print(f'\nper frame set, {config}, into 3600x2400 (median of {repeats}, one process):')
+    for name, values in times.items():
+        print(f'  {name:30s} {1e3 * statistics.median(values):7.1f} ms')
+
+
+def main():
+    """Parse the options; run a child role or the whole benchmark."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--role', default='main',
+                        choices=('main', 'publisher', 'bare', 'sink'))
+    parser.add_argument('--duration', type=float, default=10.0, help='seconds measured')
+    parser.add_argument('--warmup', type=float, default=3.0, help='seconds not counted')
+    parser.add_argument('--configs', nargs='+', default=list(CONFIGS),
+                        help='NxWIDTHxHEIGHT@RATE_HZ (cameras, size, rate)')
+    parser.add_argument('--stages', action='store_true', help='per-stage costs only')
+    parser.add_argument('--repeats', type=int, default=10, help='sets for --stages')
+    parser.add_argument('--topics', default='')
+    parser.add_argument('--width', type=int, default=1280)
+    parser.add_argument('--height', type=int, default=960)
+    parser.add_argument('--rate', type=float, default=10.0)
+    parser.add_argument('--encoding', default='bgr8')
+    parser.add_argument('--image-npy', default='')
+    parser.add_argument('--camera-info', default='')
+    parser.add_argument('--roll-deg', type=float, default=0.0)
+    parser.add_argument('--pitch-deg', type=float, default=0.0)
+    parser.add_argument('--wobble-deg', type=float, default=0.0)
+    parser.add_argument('--pub-depth', type=int, default=5)
+    parser.add_argument('--sub-depth', type=int, default=2)
+    parser.add_argument('--raw', action='store_true')
+    parser.add_argument('--topic', default='panorama')
+    parser.add_argument('--msg-type', default='image', choices=('image', 'pose'))
+    parser.add_argument('--diag-prefix', default='stitcher: panorama')
+    args = parser.parse_args()
+    if args.role != 'main':
+        return {'publisher': publisher, 'bare': bare, 'sink': sink}[args.role](args)
+    if args.stages:
+        for config in args.configs:
+            stages(config, args.repeats)
+        return 0
+    holder = isolated_domain()
+    print(f'stitcher in a ROS graph, {args.duration:g} s per phase (ROS_DOMAIN_ID '
+          f'{os.environ.get("ROS_DOMAIN_ID", "0")}); indicative on a loaded machine')
+    with tempfile.TemporaryDirectory() as workdir:
+        for config in args.configs:
+            results = graph_config(config, args.duration, args.warmup, workdir)
+            fps = float(config.split('@')[1]) if config.startswith('5x640x480') else None
+            report(config, results, target_fps=fps)
+    del holder
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
