@@ -74,6 +74,9 @@ def test_no_numeric_option_accepts_nan_infinity_or_text():
     loose = [f'accelcal {" ".join(p)} {a.option_strings[-1]} {v}'
              for p, a in numeric_options() for v in NEVER_VALID if not _rejects(a, v)]
     assert not loose, 'accepted: ' + '; '.join(loose)
+    unchecked = [f'accelcal {" ".join(p)} {a.option_strings[-1]}' for p, a in numeric_options()
+                 if a.type in (int, float) and a.choices is None]
+    assert not unchecked, 'plain int/float (no range; use cli_args): ' + '; '.join(unchecked)
 
 
 @pytest.mark.parametrize('prefix, action, value', CASES,

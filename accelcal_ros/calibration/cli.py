@@ -13,8 +13,7 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
 """
 import sys
 
-from accelcal_ros.cli_args import (float_in, nonnegative_float, nonnegative_int, positive_float,
-                                   positive_int)
+from accelcal_ros.cli_args import float_in, nonnegative_int, positive_int
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 
 
@@ -32,11 +31,11 @@ def register(subparsers, study_subparsers):
                    default=20.0,
                    help='a still dwell is a new position if its direction is more than '
                         'this from every captured one (default 20)')
-    p.add_argument('--still-threshold-g', type=positive_float, default=0.01,
+    p.add_argument('--still-threshold-g', type=float_in(0.0, 16.0, low_open=True), default=0.01,
                    help='moving-std threshold of the still detector in g (default 0.01)')
-    p.add_argument('--min-still-s', type=positive_float, default=1.0,
+    p.add_argument('--min-still-s', type=float_in(0.0, 3600.0, low_open=True), default=1.0,
                    help='minimum still time of a position in s (default 1.0)')
-    p.add_argument('--window-s', type=positive_float, default=0.3,
+    p.add_argument('--window-s', type=float_in(0.0, 600.0, low_open=True), default=0.3,
                    help='moving-variance window in s (default 0.3)')
     p.add_argument('--plot', help='also write the calibration plot (PNG) here')
     p.set_defaults(handler=_calibrate)
@@ -54,9 +53,9 @@ def register(subparsers, study_subparsers):
                    'directory, .mcap, .db3, ROS 1 .bag) with a sensor_msgs/Imu topic')
     _add_bag_arguments(p)
     p.add_argument('--calibration', help='calibration YAML (default: uncalibrated)')
-    p.add_argument('--time-constant-s', type=nonnegative_float, default=0.0,
+    p.add_argument('--time-constant-s', type=float_in(0.0, 3600.0), default=0.0,
                    help='low-pass time constant in s (default 0: none)')
-    p.add_argument('--accel-threshold-g', type=positive_float, default=0.05,
+    p.add_argument('--accel-threshold-g', type=float_in(0.0, 16.0, low_open=True), default=0.05,
                    help='flag samples whose |f| departs from 1 g by more (default 0.05)')
     p.add_argument('--every', type=positive_int, default=1, help='print every N-th sample')
     p.add_argument('-o', '--output', help='write CSV here instead of printing')

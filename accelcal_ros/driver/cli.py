@@ -7,8 +7,7 @@ real one over I2C, e.g.::
     accelcal record -o rec.csv --duration 60 --dwell 3 --move 1
     accelcal record -o rec.csv --backend i2c --bus 1 --rate 100 --duration 120
 """
-from accelcal_ros.cli_args import (finite_float, int_in, nonnegative_float, nonnegative_int,
-                                   positive_float)
+from accelcal_ros.cli_args import angle_deg, float_in, int_in, nonnegative_int
 
 
 def register(subparsers, study_subparsers):
@@ -19,17 +18,19 @@ def register(subparsers, study_subparsers):
     parser.add_argument('-o', '--output', help='CSV file to write (or --bag)')
     _add_bag_arguments(parser)
     parser.add_argument('--backend', choices=('sim', 'i2c'), default='sim')
-    parser.add_argument('--duration', type=positive_float, default=30.0,
+    parser.add_argument('--duration', type=float_in(0.0, 86400.0, low_open=True), default=30.0,
                         help='seconds (default 30)')
-    parser.add_argument('--rate', type=positive_float, default=100.0, help='output data rate, Hz')
+    parser.add_argument('--rate', type=float_in(0.0, 3200.0, low_open=True), default=100.0,
+                        help='output data rate, Hz (ADXL345: up to 3200)')
     parser.add_argument('--range-g', type=int, default=16, choices=(2, 4, 8, 16))
     parser.add_argument('--bus', type=nonnegative_int, default=1, help='I2C bus number')
     parser.add_argument('--address', type=int_in(0, 0x7F), default=0x53,
                         help='I2C address (0x53 or 0x1D)')
-    parser.add_argument('--poses-deg', type=finite_float, nargs='*', default=[],
+    parser.add_argument('--poses-deg', type=angle_deg(360.0), nargs='*', default=[],
                         help='sim: roll pitch pairs in degrees (default: 24 built-in)')
-    parser.add_argument('--dwell', type=positive_float, default=3.0, help='sim: dwell per pose, s')
-    parser.add_argument('--move', type=nonnegative_float, default=1.0,
+    parser.add_argument('--dwell', type=float_in(0.0, 3600.0, low_open=True), default=3.0,
+                        help='sim: dwell per pose, s')
+    parser.add_argument('--move', type=float_in(0.0, 3600.0), default=1.0,
                         help='sim: move between poses, s')
     parser.add_argument('--seed', type=nonnegative_int, default=0, help='sim: random seed')
     parser.set_defaults(handler=_record)

@@ -4,8 +4,7 @@ Command line of the LiDAR feature (paper B).
 ``accelcal boresight``, ``accelcal georeference``, ``accelcal error-budget`` and
 ``accelcal study boresight``.
 """
-from accelcal_ros.cli_args import (angle_deg, finite_float, float_in, nonnegative_float,
-                                   positive_float, positive_int)
+from accelcal_ros.cli_args import angle_deg, finite_float, float_in, positive_int
 
 
 def register(subparsers, study_subparsers):
@@ -29,21 +28,23 @@ def register(subparsers, study_subparsers):
                         'the IMU logs before averaging')
     p.add_argument('--weighting', choices=('noise', 'equal'), default='equal',
                    help="pair weights: equal (paper, default) or from each pair's noise")
-    p.add_argument('--distance-threshold-m', type=positive_float, default=0.05,
+    p.add_argument('--distance-threshold-m', type=float_in(0.0, 100.0, low_open=True),
+                   default=0.05,
                    help='MSAC inlier distance (default 0.05 m)')
     p.add_argument('--max-tilt-deg', type=float_in(0.0, 90.0, low_open=True),
                    default=15.0,
                    help='gravity-guided search: floor normal within this of the expected '
                         'up (default 15 deg)')
-    p.add_argument('--max-range-m', type=positive_float, default=30.0, help='crop radius (m)')
-    p.add_argument('--voxel-m', type=nonnegative_float, default=0.0,
+    p.add_argument('--max-range-m', type=float_in(0.0, 1e4, low_open=True), default=30.0,
+                   help='crop radius (m)')
+    p.add_argument('--voxel-m', type=float_in(0.0, 100.0), default=0.0,
                    help='thinning voxel (m, 0 = off)')
-    p.add_argument('--ceiling-lift-m', type=nonnegative_float, default=10.0,
+    p.add_argument('--ceiling-lift-m', type=float_in(0.0, 1e4), default=10.0,
                    help='paper B ceiling removal: lift the origin this far up ...')
-    p.add_argument('--ceiling-radius-m', type=nonnegative_float, default=0.0,
+    p.add_argument('--ceiling-radius-m', type=float_in(0.0, 1e4), default=0.0,
                    help='... and drop points within this radius of it (0: instead drop '
                         'points higher than --max-height-m above the scanner)')
-    p.add_argument('--max-height-m', type=finite_float, default=-0.2,
+    p.add_argument('--max-height-m', type=float_in(-1e4, 1e4), default=-0.2,
                    help='floor candidates lie below this height along up (m, default -0.2)')
     p.add_argument('--skip-bad-files', action='store_true',
                    help='drop positions whose files cannot be read instead of failing')
@@ -58,7 +59,7 @@ def register(subparsers, study_subparsers):
     g.add_argument('--poses', help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav; or --odom)')
     _add_georeference_bag_arguments(g)
     g.add_argument('--boresight', required=True, help='boresight YAML (R or rpy_deg)')
-    g.add_argument('--lever-arm', nargs=3, type=finite_float, default=(0.0, 0.0, 0.0),
+    g.add_argument('--lever-arm', nargs=3, type=float_in(-1e4, 1e4), default=(0.0, 0.0, 0.0),
                    metavar=('X', 'Y', 'Z'), help='LiDAR origin in the IMU frame (m)')
     g.add_argument('--time-base', type=finite_float, default=0.0,
                    help='scan start (s, pose clock) added to relative point times '
@@ -73,14 +74,15 @@ def register(subparsers, study_subparsers):
     e = subparsers.add_parser(
         'error-budget', help='theoretical point error, paper B eq. (1)',
         description='sqrt(D_ins^2 + D_gnss^2 + D_lidar^2 + D_boresight^2) at a range.')
-    e.add_argument('--range-m', type=nonnegative_float, default=100.0)
-    e.add_argument('--attitude-deg', type=nonnegative_float, default=0.1)
-    e.add_argument('--gnss-m', type=nonnegative_float, default=0.01)
-    e.add_argument('--lidar-m', type=nonnegative_float, default=0.03)
-    e.add_argument('--boresight-deg', type=nonnegative_float, nargs='+', default=[1.0, 0.3])
-    e.add_argument('--sync-s', type=nonnegative_float, default=0.0, help='time-sync error (s)')
-    e.add_argument('--speed-m-s', type=nonnegative_float, default=30 / 3.6)
-    e.add_argument('--rate-deg-s', type=nonnegative_float, default=180.0)
+    e.add_argument('--range-m', type=float_in(0.0, 1e6), default=100.0)
+    e.add_argument('--attitude-deg', type=float_in(0.0, 180.0), default=0.1)
+    e.add_argument('--gnss-m', type=float_in(0.0, 1e6), default=0.01)
+    e.add_argument('--lidar-m', type=float_in(0.0, 1e6), default=0.03)
+    e.add_argument('--boresight-deg', type=float_in(0.0, 180.0), nargs='+', default=[1.0, 0.3])
+    e.add_argument('--sync-s', type=float_in(0.0, 3600.0), default=0.0,
+                   help='time-sync error (s)')
+    e.add_argument('--speed-m-s', type=float_in(0.0, 1e4), default=30 / 3.6)
+    e.add_argument('--rate-deg-s', type=float_in(0.0, 1e5), default=180.0)
     e.set_defaults(handler=_error_budget)
 
     s = study_subparsers.add_parser(
@@ -108,7 +110,7 @@ def _add_boresight_bag_arguments(p):
     p.add_argument('--imu', metavar='TOPIC',
                    help='bag: sensor_msgs/Imu topic (default: the only one); its gyro, when '
                         'provided, else its accelerometer, finds the still periods')
-    p.add_argument('--clouds-per-position', type=int, default=1,
+    p.add_argument('--clouds-per-position', type=positive_int, default=1,
                    help='bag: scans nearest the middle of each still period used (default 1)')
     add_stamp_argument(p)
 
