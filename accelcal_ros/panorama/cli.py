@@ -8,8 +8,7 @@ Offline commands of the panorama feature.
 * ``accelcal study horizon``: paper A's Fig. 6 experiment (horizon deviation for pitch
   errors of -2 / +2 deg and for the package's own calibration error).
 """
-from accelcal_ros.cli_args import (angle_deg, finite_float, float_in, int_in, nonnegative_float,
-                                   positive_int)
+from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
 
 
 def register(subparsers, study_subparsers):
@@ -36,7 +35,7 @@ def register(subparsers, study_subparsers):
     p.add_argument('--imu-to-camera', type=finite_float, nargs=9, metavar='R',
                    help='rotation body -> reference camera optical frame, 9 row-major '
                         'values (default: camera looks along body +x)')
-    p.add_argument('--blend-deg', type=nonnegative_float, default=0.0,
+    p.add_argument('--blend-deg', type=float_in(0.0, 180.0), default=0.0,
                    help='feathered blending band at the seams, deg (default 0: off)')
     p.add_argument('-o', '--output', required=True, help='panorama image to write (PNG)')
     p.set_defaults(handler=_stitch)
