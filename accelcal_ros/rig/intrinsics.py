@@ -12,9 +12,10 @@ the camera is calibrated again without it.
 ``distortion_model: plumb_bob``, ``distortion_coefficients: {data}``).
 """
 from dataclasses import dataclass, field
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Tuple
 
-from accelcal_ros.errors import CalibrationError, FileFormatError
+from accelcal_ros.camera import camera_model_from_mapping
+from accelcal_ros.errors import CalibrationError, FileFormatError, InputError
 from accelcal_ros.fileio import load_yaml_mapping
 import cv2
 import numpy as np
@@ -24,7 +25,7 @@ MIN_VIEWS = 4
 
 @dataclass
 class Intrinsics:
-    """``K`` (3x3, px), ``D`` (5,), the view errors (px RMS per view id) and what was dropped."""
+    """``K`` (3x3, px), ``D`` (5 or 8), the view errors (px RMS per view id) and the drops."""
 
     K: np.ndarray
     D: np.ndarray
@@ -79,45 +80,26 @@ def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.
         ids = [i for i in ids if i not in dropped]
     d5 = np.zeros(5)
     d5[:min(5, np.size(d))] = np.ravel(d)[:5]
+    if not np.all(np.isfinite(k)) or not np.all(np.isfinite(d5)):
+        raise CalibrationError(f'camera {name}: calibration diverged; check the board size '
+                               'and square, or give --intrinsics for it')
     return Intrinsics(np.asarray(k, dtype=float), d5, tuple(size), float(rms),
                       {i: float(e) for i, e in zip(ids, per_view)}, dropped)
-
-
-def _matrix(path: str, data: dict, key: str, shape: Sequence[int]) -> np.ndarray:
-    entry = data.get(key)
-    values = entry.get('data') if isinstance(entry, dict) else entry
-    try:
-        arr = np.asarray(values, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise FileFormatError(path, f'"{key}" must hold numbers, got {values!r}') from None
-    if arr.size not in shape or not np.all(np.isfinite(arr)):
-        wanted = ' or '.join(str(s) for s in shape)
-        raise FileFormatError(path, f'"{key}" needs {wanted} finite values, got {arr.size}')
-    return arr
 
 
 def load_camera_info(path: str) -> Tuple[str, Intrinsics]:
     """Read a camera_calibration YAML; return ``(camera_name, Intrinsics)``."""
     data = load_yaml_mapping(path, 'camera_info file')
     try:
-        size = (int(data['image_width']), int(data['image_height']))
-    except (KeyError, TypeError, ValueError):
-        raise FileFormatError(path, 'needs integer image_width and image_height (the YAML '
-                              "ROS's camera_calibration writes)") from None
-    k = _matrix(path, data, 'camera_matrix', (9,)).reshape(3, 3)
-    if k[0, 0] <= 0 or k[1, 1] <= 0 or np.abs(k[2] - [0, 0, 1]).max() > 1e-9:
-        raise FileFormatError(path, f'camera_matrix is not a camera matrix: {k.tolist()}')
-    model = data.get('distortion_model', 'plumb_bob')
-    if model not in ('plumb_bob', 'rational_polynomial'):
-        raise FileFormatError(path, f'distortion_model {model!r} is not supported (plumb_bob)')
-    d = _matrix(path, data, 'distortion_coefficients', (0, 4, 5, 8)) \
-        if 'distortion_coefficients' in data else np.zeros(5)
-    if np.any(d[5:] != 0):
-        raise FileFormatError(path, 'only k1, k2, p1, p2, k3 are supported; k4..k6 must be 0')
-    d5 = np.zeros(5)
-    d5[:min(5, d.size)] = d[:5]
+        model = camera_model_from_mapping(data, 'camera_info file')
+    except InputError as exc:
+        raise FileFormatError(path, str(exc)) from None
+    if model.is_fisheye:
+        raise FileFormatError(path, 'equidistant (fisheye) distortion is not supported by '
+                              'rig calibration; use plumb_bob or rational_polynomial')
     name = str(data.get('camera_name') or '')
-    return name, Intrinsics(k, d5, size, source=f'file {path}')
+    return name, Intrinsics(np.array(model.K), np.array(model.D), model.size,
+                            source=f'file {path}')
 
 
 def per_view_errors(intrinsics: Intrinsics, views: Dict[str, np.ndarray],
