@@ -1,4 +1,12 @@
-"""Launch the ADXL345 driver with its parameter file (for real ROS 2 installs)."""
+"""
+Launch the ADXL345 driver with its parameter file.
+
+    ros2 launch accelcal_ros driver.launch.py backend:=sim
+
+Arguments (the same in every launch file of this package): ``backend`` (i2c, sim or
+replay) and ``imu_driver_params`` (parameter file, default the installed
+``config/imu_driver.yaml``).
+"""
 import os
 
 from ament_index_python.packages import get_package_share_directory
@@ -9,13 +17,16 @@ from launch_ros.actions import Node
 
 
 def generate_launch_description():
-    """Start imu_driver with config/imu_driver.yaml; ``backend:=sim`` for the simulator."""
-    params = os.path.join(get_package_share_directory('accelcal_ros'), 'config',
-                          'imu_driver.yaml')
+    """Return the launch description: one ``imu_driver``."""
+    config = os.path.join(get_package_share_directory('accelcal_ros'), 'config')
     return LaunchDescription([
         DeclareLaunchArgument('backend', default_value='i2c',
-                              description='i2c, sim or replay'),
+                              description='imu_driver sample source: i2c, sim or replay'),
+        DeclareLaunchArgument('imu_driver_params',
+                              default_value=os.path.join(config, 'imu_driver.yaml'),
+                              description='parameter file of imu_driver'),
         Node(package='accelcal_ros', executable='imu_driver', name='imu_driver',
-             parameters=[params, {'backend': LaunchConfiguration('backend')}],
+             parameters=[LaunchConfiguration('imu_driver_params'),
+                         {'backend': LaunchConfiguration('backend')}],
              output='screen'),
     ])

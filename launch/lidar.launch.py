@@ -1,21 +1,27 @@
 """
 Launch the LiDAR-IMU nodes of accelcal_ros (paper B).
 
-``ros2 launch accelcal_ros lidar.launch.py`` starts ``lidar_calibration`` and
-``cloud_assembler`` with the parameter files in ``config/``. Remap ``points``, ``imu/data_raw``
-and ``odom`` to your driver's topics, e.g. ``points:=velodyne_points``.
+    ros2 launch accelcal_ros lidar.launch.py points:=velodyne_points odom:=odometry/filtered
+
+starts ``lidar_calibration`` and ``cloud_assembler``. Remap ``points``, ``imu/data_raw``
+and ``odom`` to your drivers' topics. A LiDAR rig usually has its own IMU (with a gyro),
+so ``imu_driver`` is not started unless ``driver:=true``. Arguments (the same in every
+launch file of this package): ``driver`` (start ``imu_driver``: true or false),
+``backend`` (i2c, sim or replay), and one ``<node>_params`` parameter file per node
+(default the installed ``config/<node>.yaml``).
 """
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 
 def generate_launch_description():
-    """Return the launch description of the two LiDAR nodes."""
+    """Return the launch description: imu_driver (optional) and the two LiDAR nodes."""
     config = os.path.join(get_package_share_directory('accelcal_ros'), 'config')
     points = LaunchConfiguration('points')
     imu = LaunchConfiguration('imu')
@@ -27,10 +33,28 @@ def generate_launch_description():
                               description='sensor_msgs/Imu topic of the IMU'),
         DeclareLaunchArgument('odom', default_value='odom',
                               description='nav_msgs/Odometry of the navigation solution'),
+        DeclareLaunchArgument('driver', default_value='false',
+                              description='start imu_driver (an ADXL345 on the rig)'),
+        DeclareLaunchArgument('backend', default_value='i2c',
+                              description='imu_driver sample source: i2c, sim or replay'),
+        DeclareLaunchArgument('imu_driver_params',
+                              default_value=os.path.join(config, 'imu_driver.yaml'),
+                              description='parameter file of imu_driver'),
+        DeclareLaunchArgument('lidar_calibration_params',
+                              default_value=os.path.join(config, 'lidar_calibration.yaml'),
+                              description='parameter file of lidar_calibration'),
+        DeclareLaunchArgument('cloud_assembler_params',
+                              default_value=os.path.join(config, 'cloud_assembler.yaml'),
+                              description='parameter file of cloud_assembler'),
+        Node(package='accelcal_ros', executable='imu_driver', name='imu_driver',
+             parameters=[LaunchConfiguration('imu_driver_params'),
+                         {'backend': LaunchConfiguration('backend')}],
+             remappings=[('imu/data_raw', imu)],
+             condition=IfCondition(LaunchConfiguration('driver')), output='screen'),
         Node(package='accelcal_ros', executable='lidar_calibration', name='lidar_calibration',
-             parameters=[os.path.join(config, 'lidar_calibration.yaml')],
+             parameters=[LaunchConfiguration('lidar_calibration_params')],
              remappings=[('points', points), ('imu/data_raw', imu)], output='screen'),
         Node(package='accelcal_ros', executable='cloud_assembler', name='cloud_assembler',
-             parameters=[os.path.join(config, 'cloud_assembler.yaml')],
+             parameters=[LaunchConfiguration('cloud_assembler_params')],
              remappings=[('points', points), ('odom', odom)], output='screen'),
     ])

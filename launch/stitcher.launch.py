@@ -1,33 +1,57 @@
 """
-Launch the ``stitcher`` node (levelled panorama) with its parameters file.
+Launch the IMU driver, the attitude estimator and the ``stitcher`` node (levelled panorama).
 
     ros2 launch accelcal_ros stitcher.launch.py rig_file:=/path/to/rig.yaml \
-        params_file:=/path/to/stitcher.yaml
+        stitcher_params:=/path/to/stitcher.yaml calibration_file:=/path/to/calibration.yaml
 
 ``rig_file`` defaults to the installed example rig (5 cameras, config/rig_example.yaml);
-the camera topics default to ``<camera name>/image_raw`` and the attitude comes from the
-``attitude`` node on ``attitude``.
+the camera topics default to ``<camera name>/image_raw``. Arguments (the same in every
+launch file of this package): ``driver`` (start ``imu_driver``: true or false),
+``backend`` (i2c, sim or replay), and one ``<node>_params`` parameter file per node
+(default the installed ``config/<node>.yaml``).
 """
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 
 def generate_launch_description():
-    """Return the launch description: one ``stitcher`` node."""
-    share = get_package_share_directory('accelcal_ros')
+    """Return the launch description: imu_driver (optional), attitude and stitcher."""
+    config = os.path.join(get_package_share_directory('accelcal_ros'), 'config')
     return LaunchDescription([
-        DeclareLaunchArgument(
-            'params_file', default_value=os.path.join(share, 'config', 'stitcher.yaml'),
-            description='ros2 parameters file of the stitcher'),
-        DeclareLaunchArgument(
-            'rig_file', default_value=os.path.join(share, 'config', 'rig_example.yaml'),
-            description='rig YAML (cameras: name, width, height, K, D, R)'),
-        Node(package='accelcal_ros', executable='stitcher', name='stitcher', output='screen',
-             parameters=[LaunchConfiguration('params_file'),
-                         {'rig_file': LaunchConfiguration('rig_file')}]),
+        DeclareLaunchArgument('driver', default_value='true',
+                              description='start imu_driver (false: one already runs)'),
+        DeclareLaunchArgument('backend', default_value='i2c',
+                              description='imu_driver sample source: i2c, sim or replay'),
+        DeclareLaunchArgument('imu_driver_params',
+                              default_value=os.path.join(config, 'imu_driver.yaml'),
+                              description='parameter file of imu_driver'),
+        DeclareLaunchArgument('attitude_params',
+                              default_value=os.path.join(config, 'attitude.yaml'),
+                              description='parameter file of attitude'),
+        DeclareLaunchArgument('stitcher_params',
+                              default_value=os.path.join(config, 'stitcher.yaml'),
+                              description='parameter file of stitcher'),
+        DeclareLaunchArgument('calibration_file', default_value='',
+                              description='accelerometer calibration file for attitude'),
+        DeclareLaunchArgument('rig_file',
+                              default_value=os.path.join(config, 'rig_example.yaml'),
+                              description='rig YAML (cameras: name, width, height, K, D, R)'),
+        Node(package='accelcal_ros', executable='imu_driver', name='imu_driver',
+             parameters=[LaunchConfiguration('imu_driver_params'),
+                         {'backend': LaunchConfiguration('backend')}],
+             condition=IfCondition(LaunchConfiguration('driver')), output='screen'),
+        Node(package='accelcal_ros', executable='attitude', name='attitude',
+             parameters=[LaunchConfiguration('attitude_params'),
+                         {'calibration_file': LaunchConfiguration('calibration_file')}],
+             output='screen'),
+        Node(package='accelcal_ros', executable='stitcher', name='stitcher',
+             parameters=[LaunchConfiguration('stitcher_params'),
+                         {'rig_file': LaunchConfiguration('rig_file')}],
+             output='screen'),
     ])
