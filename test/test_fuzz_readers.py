@@ -284,6 +284,15 @@ def test_damaged_files_parse_or_raise_accelcal_error(tmp_path, name):
                           'other than AccelcalError:\n' + '\n'.join(failures[:10]))
 
 
+@pytest.mark.parametrize('name', sorted(READERS))
+def test_directory_missing_and_unreadable_paths_raise_accelcal_error(tmp_path, name):
+    """A directory, a missing file, an unreadable one and an empty path: AccelcalError."""
+    _, _, read = READERS[name]
+    for path in (str(tmp_path), str(tmp_path / 'missing.file'), '/proc/self/mem', ''):
+        with pytest.raises(AccelcalError):
+            read(path)
+
+
 def main():
     """Print cases and time per reader (``python test/test_fuzz_readers.py``)."""
     import tempfile
