@@ -172,7 +172,7 @@ def test_wrong_size_or_encoding_names_topic_encoding_and_expected_size():
                                          r'expected 64x48'):
         image_msg_to_array(msg, topic='cam0/image_raw', expected_size=(64, 48))
     msg.encoding = 'jpeg'
-    with pytest.raises(InputError, match="image on cam0/image_raw: unsupported image "
+    with pytest.raises(InputError, match='image on cam0/image_raw: unsupported image '
                                          "encoding 'jpeg'; supported: rgb8, bgr8"):
         image_msg_to_array(msg, topic='cam0/image_raw')
     msg = Image(height=4, width=6, encoding='yuv422', step=12, data=bytes(40))
