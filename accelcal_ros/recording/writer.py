@@ -243,3 +243,38 @@ class BagWriter:
         return types['nav_msgs/msg/Odometry'](
             header=self.header(t_ns, frame_id, topic), child_frame_id=child_frame_id,
             pose=with_cov, twist=twist_cov)
+
+    def image_message(self, t_ns: int, image: np.ndarray, frame_id: str, topic: str = ''):
+        """Return a sensor_msgs/Image: ``mono8`` for (H, W) uint8, ``bgr8`` for (H, W, 3)."""
+        image = np.ascontiguousarray(image, dtype=np.uint8)
+        encoding = 'mono8' if image.ndim == 2 else 'bgr8'
+        height, width = image.shape[:2]
+        return self.typestore.types['sensor_msgs/msg/Image'](
+            header=self.header(t_ns, frame_id, topic), height=height, width=width,
+            encoding=encoding, is_bigendian=0, step=image.strides[0],
+            data=image.reshape(-1).view(np.uint8))
+
+    def camera_info_message(self, t_ns: int, k, d, width: int, height: int, frame_id: str,
+                            distortion_model: str = 'plumb_bob', topic: str = ''):
+        """Return a sensor_msgs/CameraInfo (K 3x3, D, P = [K | 0], R = I)."""
+        types = self.typestore.types
+        k = np.asarray(k, dtype=float).reshape(3, 3)
+        p = np.hstack([k, np.zeros((3, 1))]).reshape(-1)
+        roi = types['sensor_msgs/msg/RegionOfInterest'](x_offset=0, y_offset=0, height=0,
+                                                        width=0, do_rectify=False)
+        fields = {'header': self.header(t_ns, frame_id, topic), 'height': int(height),
+                  'width': int(width), 'distortion_model': distortion_model, 'binning_x': 0,
+                  'binning_y': 0, 'roi': roi}
+        arrays = {'d': np.asarray(d, dtype=float).reshape(-1), 'k': k.reshape(-1),
+                  'r': np.eye(3).reshape(-1), 'p': p}
+        for name, value in arrays.items():
+            fields[name.upper() if self.format == 'ros1' else name] = value
+        return types['sensor_msgs/msg/CameraInfo'](**fields)
+
+    def vector3_stamped_message(self, t_ns: int, xyz, frame_id: str, topic: str = ''):
+        """Return a geometry_msgs/Vector3Stamped (the attitude node: x roll, y pitch, rad)."""
+        types = self.typestore.types
+        x, y, z = (float(v) for v in xyz)
+        return types['geometry_msgs/msg/Vector3Stamped'](
+            header=self.header(t_ns, frame_id, topic),
+            vector=types['geometry_msgs/msg/Vector3'](x=x, y=y, z=z))

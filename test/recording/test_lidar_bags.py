@@ -17,7 +17,7 @@ TRUTH = sim.default_boresight()
 
 @pytest.fixture(scope='module')
 def protocol(tmp_path_factory):
-    """Simulate paper B's protocol (15 positions, 3 s still): directory and boresight."""
+    """Simulate 15 positions of paper B (3 s still); write the directory, its boresight."""
     root = tmp_path_factory.mktemp('bs')
     positions = sim.simulate_protocol(TRUTH, seed=5, still_s=3.0)
     sim.write_protocol(root / 'dir', positions, 'binary')

@@ -1,0 +1,106 @@
+"""
+P2P positioning over a recording: images + CameraInfo + attitude (or IMU) from one bag.
+
+The ``p2p`` node's core (:class:`~accelcal_ros.p2p.pipeline.P2PPipeline`) is fed in
+time order: the first valid sensor_msgs/CameraInfo, then each image (sensor_msgs/Image or
+CompressedImage, streamed, converted to grey) after every attitude up to its stamp plus
+the tolerance. The attitude is the attitude node's Vector3Stamped topic (x roll, y pitch,
+rad) or, from a sensor_msgs/Imu topic, the roll/pitch of the calibrated specific force
+(:class:`~accelcal_ros.sensor.tilt.TiltEstimator`, paper A eq. 7, the calibration
+applied when given). Times are absolute seconds (header stamps unless ``--stamp receive``).
+"""
+from typing import Iterator, Optional, Tuple
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.recording import convert
+from accelcal_ros.recording.bag import BagReader
+from accelcal_ros.recording.streams import message_time_s, read_attitude, read_imu
+import numpy as np
+
+
+def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Optional[str],
+                    model=None) -> Tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic."""
+    if attitude_topic is not None or imu_topic is None:
+        try:
+            att = read_attitude(bag, attitude_topic)
+            return att.t, att.roll, att.pitch, att.warnings
+        except InputError:
+            if attitude_topic is not None:
+                raise
+    from accelcal_ros.sensor.tilt import TiltEstimator
+    from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
+
+    imu = read_imu(bag, imu_topic, '--imu')
+    estimator = TiltEstimator(model)
+    keep_t, roll, pitch = [], [], []
+    for ti, ai in zip(imu.t, imu.accel / STANDARD_GRAVITY_M_S2):
+        est = estimator.update(float(ti), ai)
+        if est is not None:
+            keep_t.append(ti)
+            roll.append(est.roll)
+            pitch.append(est.pitch)
+    if not keep_t:
+        raise InputError(f'{imu.topic}: no sample gives a roll/pitch (all NaN or zero?)')
+    t = imu.epoch_ns / 1e9 + np.array(keep_t)
+    return t, np.array(roll), np.array(pitch), imu.warnings
+
+
+def first_camera_info(bag: BagReader, topic: Optional[str]) -> dict:
+    """Return :func:`~accelcal_ros.recording.convert.camera_info` of the first valid message."""
+    name = bag.select_topic(topic, (convert.CAMERA_INFO,), '--camera-info')
+    reason = ''
+    for message in bag.messages([name], f'reading {name}'):
+        try:
+            return convert.camera_info(message.msg)
+        except InputError as exc:
+            reason = str(exc)
+    raise InputError(f'{name}: no usable CameraInfo ({reason})')
+
+
+def run_p2p(bag: BagReader, pipeline, image_topic: Optional[str], attitude) -> Iterator:
+    """
+    Yield the :class:`~accelcal_ros.p2p.pipeline.FrameResult` of every image of a topic.
+
+    ``attitude`` is ``(t_s, roll, pitch)`` arrays sorted by time; ``pipeline`` holds the
+    camera already.
+    """
+    import cv2
+
+    name = bag.select_topic(image_topic, (convert.IMAGE, convert.COMPRESSED_IMAGE), '--image')
+    t_att, roll, pitch = attitude
+    tolerance = pipeline.values['attitude_tolerance_s']
+    fed = 0
+    for message in bag.messages([name], f'p2p on {name}'):
+        stamp = message_time_s(message, bag.stamp)
+        while fed < len(t_att) and t_att[fed] <= stamp + tolerance:
+            yield from pipeline.add_attitude(float(t_att[fed]), roll[fed], pitch[fed])
+            fed += 1
+        image = convert.image_array(message.msg, message.msgtype)
+        grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        if grey.dtype != np.uint8:
+            grey = (grey >> 8).astype(np.uint8)
+        frame_id = str(message.msg.header.frame_id)
+        yield from pipeline.add_image(stamp, frame_id, grey)
+    if pipeline.pending is not None:
+        pending, pipeline.pending = pipeline.pending, None
+        yield pipeline._process(*pending)
+
+
+def results_csv(results) -> Tuple[str, int, int]:
+    """Return ``(CSV text, solved, total)``: camera position (object frame, m), yaw, range."""
+    lines = ['t,x_m,y_m,z_m,yaw_deg,range_m,roll_deg,pitch_deg,reason']
+    solved = total = 0
+    for r in results:
+        total += 1
+        att = r.attitude or (np.nan, np.nan)
+        if r.solution is None:
+            lines.append(f'{r.stamp_s:.6f},,,,,,{np.degrees(att[0]):.4f},'
+                         f'{np.degrees(att[1]):.4f},"{r.reason}"')
+            continue
+        solved += 1
+        pos = r.solution.camera_position
+        lines.append(f'{r.stamp_s:.6f},{pos[0]:.5f},{pos[1]:.5f},{pos[2]:.5f},'
+                     f'{np.degrees(r.solution.yaw):.4f},{r.solution.range_m:.5f},'
+                     f'{np.degrees(att[0]):.4f},{np.degrees(att[1]):.4f},')
+    return '\n'.join(lines) + '\n', solved, total
