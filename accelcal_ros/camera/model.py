@@ -82,8 +82,8 @@ def _camera_matrix(k: Any, where: str) -> np.ndarray:
     if (not k[0, 0] > 0 or not k[1, 1] > 0 or k[1, 0] != 0.0
             or np.abs(k[2] - [0.0, 0.0, 1.0]).max() > 1e-9):
         raise InputError(f'{where}K must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with focal '
-                         f'lengths fx, fy > 0, got {k.reshape(-1).tolist()} (all zero: the '
-                         'camera is not calibrated)')
+                         f'lengths fx, fy > 0, got {k.reshape(-1).tolist()} (an all-zero K: '
+                         'the camera is not calibrated)')
     return k
 
 

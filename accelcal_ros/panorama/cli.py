@@ -17,7 +17,7 @@ def register(subparsers, study_subparsers):
         'stitch', help='stitch one set of rig images into a levelled panorama')
     p.add_argument('images', nargs='+', help='camera images, in rig order')
     p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
-                   'K, D, R)')
+                   'K, D, R; optional imu_to_camera)')
     p.add_argument('--roll', type=angle_deg(180.0), required=True,
                    help='reference camera roll, degrees (REP-103 body attitude)')
     p.add_argument('--pitch', type=angle_deg(90.0), required=True,
@@ -34,7 +34,8 @@ def register(subparsers, study_subparsers):
                    help='spherical (equal angle per pixel; default) or cylindrical')
     p.add_argument('--imu-to-camera', type=finite_float, nargs=9, metavar='R',
                    help='rotation body -> reference camera optical frame, 9 row-major '
-                        'values (default: camera looks along body +x)')
+                        "values (default: the rig file's imu_to_camera, else camera looks "
+                        'along body +x)')
     p.add_argument('--blend-deg', type=float_in(0.0, 180.0), default=0.0,
                    help='feathered blending band at the seams, deg (default 0: off)')
     p.add_argument('-o', '--output', required=True, help='panorama image to write (PNG)')
@@ -91,9 +92,8 @@ def _stitch(args):
     import math
 
     from accelcal_ros.errors import InputError
-    from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import load_rig
+    from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.panorama.stitch import Stitcher
 
     rig = load_rig(args.rig)
@@ -106,8 +106,7 @@ def _stitch(args):
             raise InputError(f'--{name.replace("_", "-")} must be a finite number')
     geometry = PanoramaGeometry(args.width, args.height, args.fov_h, args.fov_v,
                                 args.projection)
-    imu_to_camera = DEFAULT_IMU_TO_CAMERA if args.imu_to_camera is None else \
-        rotation_matrix_from_list(args.imu_to_camera, '--imu-to-camera')
+    imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
     images = [read_image(path) for path in args.images]
     channels = 1 if all(im.ndim == 2 for im in images) else 3
     stitcher = Stitcher(rig, geometry, imu_to_camera, blend_width_deg=args.blend_deg,

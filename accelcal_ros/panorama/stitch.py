@@ -21,8 +21,8 @@ import math
 import time
 
 from accelcal_ros.errors import InputError
-from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.lookup import LookupBuilder
+from accelcal_ros.panorama.rig import resolve_imu_to_camera
 from accelcal_ros.panorama.rig_projection import tilt_matrix
 import numpy as np
 
@@ -47,7 +47,8 @@ class Stitcher:
     Levelled panorama from the images of a calibrated rig and the reference attitude.
 
     ``channels`` is 3 (colour, any channel order: the output has the input's order) or
-    1 (grey). Typical use::
+    1 (grey). ``imu_to_camera`` (IMU body -> reference camera optical frame) defaults
+    to the rig's (:func:`~.rig.resolve_imu_to_camera`). Typical use::
 
         stitcher = Stitcher(rig, PanoramaGeometry(3600, 2400, 180, 120))
         stitcher.set_attitude(roll, pitch)       # radians, REP-103 body attitude
@@ -56,7 +57,7 @@ class Stitcher:
         panorama = stitcher.render()             # owned by the stitcher: copy to keep
     """
 
-    def __init__(self, rig, geometry, imu_to_camera=DEFAULT_IMU_TO_CAMERA, grid_step=20,
+    def __init__(self, rig, geometry, imu_to_camera=None, grid_step=20,
                  tolerance_px=0.1, rebuild_threshold_deg=0.01, blend_width_deg=0.0,
                  channels=3):
         import cv2
@@ -68,6 +69,8 @@ class Stitcher:
                              f'{rebuild_threshold_deg!r}')
         if not (math.isfinite(blend_width_deg) and 0 <= blend_width_deg <= 90):
             raise InputError(f'blend_width_deg must be in [0, 90], got {blend_width_deg!r}')
+        if imu_to_camera is None:  # the rig file's, else the default mounting
+            imu_to_camera = resolve_imu_to_camera(rig)[0]
         self._cv2 = cv2
         self.rig = rig
         self.geometry = geometry
