@@ -32,6 +32,8 @@ except ImportError:  # python-neo-lzf not installed: pure Python below
 MAX_OFFSET = 8192
 MAX_LITERAL = 32
 MAX_MATCH = 264
+#: the most output one compressed byte can stand for (a 3-byte reference copies 264 bytes)
+MAX_RATIO = MAX_MATCH // 3
 
 
 class LzfError(ValueError):

@@ -187,6 +187,9 @@ def _read_compressed(path, raw, offset, dtype, points):
     if uncompressed != points * dtype.itemsize:
         raise FileFormatError(path, f'uncompressed size {uncompressed} != {points} points x '
                               f'{dtype.itemsize} bytes (byte offset {offset})')
+    if uncompressed > lzf.MAX_RATIO * compressed + lzf.MAX_LITERAL:
+        raise FileFormatError(path, f'{compressed} LZF bytes cannot hold {uncompressed} bytes '
+                              f'(byte offset {offset}): corrupt sizes')
     try:
         data = lzf.decompress(raw[start:start + compressed], uncompressed)
     except lzf.LzfError as exc:

@@ -123,6 +123,56 @@ def test_pcd_errors_name_file_and_place(tmp_path):
         read_pcd(hdr)
 
 
+@pytest.mark.parametrize('change, words', [
+    (('VIEWPOINT 0 0 0 1 0 0 0', 'VIEWPOINT 0 0 abc 1 0 0 0'), r':9: VIEWPOINT must be 7'),
+    (('VIEWPOINT 0 0 0 1 0 0 0', 'VIEWPOINT 0 0 0'), r':9: VIEWPOINT must be 7'),
+    (('VIEWPOINT 0 0 0 1 0 0 0', 'VIEWPOINT 0 0 nan 1 0 0 0'), r':9: VIEWPOINT must be 7'),
+    (('FIELDS x y z intensity ring time', 'FIELDS'), r'FIELDS names no field'),
+    (('FIELDS x y z intensity ring time', 'FIELDS x x z intensity ring time'), 'FIELDS'),
+    (('WIDTH 40', 'WIDTH -40'), 'POINTS'),
+])
+def test_pcd_header_values_are_checked(tmp_path, change, words):
+    """Non-numeric VIEWPOINT, empty or duplicated FIELDS, negative sizes: file and line."""
+    path = tmp_path / 'h.pcd'
+    text = pcd_bytes(_cloud(40), 'ascii').decode().replace(*change)
+    path.write_text(text)
+    with pytest.raises(FileFormatError, match=r'h\.pcd' + '.*' + words):
+        read_pcd(path)
+
+
+def test_pcd_compressed_sizes_that_cannot_match_are_refused_before_decoding(tmp_path):
+    """A size word claiming far more than the LZF bytes can hold is a corrupt file."""
+    cloud = _cloud(2000)
+    raw = pcd_bytes(cloud, 'binary_compressed')
+    at = raw.index(b'DATA binary_compressed\n') + len(b'DATA binary_compressed\n')
+    header = raw[:at].replace(b'WIDTH 2000', b'WIDTH 100000000').replace(
+        b'POINTS 2000', b'POINTS 100000000')
+    sizes = np.array([16, 100000000 * cloud.dtype.itemsize], dtype='<u4').tobytes()
+    path = tmp_path / 'bomb.pcd'
+    path.write_bytes(header + sizes + b'\x00' * 16)
+    with pytest.raises(FileFormatError, match='cannot hold'):
+        read_pcd(path)
+
+
+@pytest.mark.parametrize('old, new, words', [
+    ('property float x\n', 'property float\n', ':5: unsupported property'),
+    ('property float x\n', 'property\n', ':5: unsupported property'),
+    ('property float y\n', 'property float x\n', ":6: property 'x' defined twice"),
+    ('element vertex 30\n', 'element vertex -3\n', ':4: bad element count'),
+    ('property float x\n', 'property list uchar\n', ':5: malformed list property'),
+])
+@pytest.mark.parametrize('binary', [True, False])
+def test_ply_header_lines_are_checked(tmp_path, old, new, words, binary):
+    """PLY property lines without a name, duplicated, or with bad counts: file and line."""
+    path = tmp_path / 'h.ply'
+    write_ply(path, _cloud(30), binary)
+    raw = path.read_bytes()
+    assert raw.count(old.encode()) == 1
+    path.write_bytes(raw.replace(old.encode(), new.encode()))
+    with pytest.raises(FileFormatError, match=r'h\.ply' + words):
+        read_ply(path)
+
+
 def test_failed_write_keeps_the_old_file(tmp_path):
     """A write that fails leaves the previous file untouched and no temporary file."""
     path = tmp_path / 'keep.pcd'
