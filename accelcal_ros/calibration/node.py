@@ -112,7 +112,8 @@ class CalibrationNode(Node):
         try:
             result = self.calibrator.finish(end=False)
         except AccelcalError as exc:
-            return self._refuse(response, exc)
+            return self._refuse(response, f'{exc}; the session stays open: capture more '
+                                'positions and call calibration/finish again')
         path = os.path.expanduser(self.params['output_file'])
         try:
             save_calibration(path, result)

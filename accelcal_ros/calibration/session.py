@@ -312,7 +312,7 @@ class Calibrator:
             hints = '; '.join(suggest_directions(means, 3))
             raise CalibrationError(
                 f'{len(means)} positions are too few for the {self.config.model} model: '
-                f'capture at least {self.needed} (e.g. add {hints}), then call finish again')
+                f'capture at least {self.needed} (e.g. add {hints})')
         result = fit_ellipsoid(means, stds, model=self.config.model,
                                drop_outliers=drop_outliers, holdout=holdout,
                                min_positions=self.needed,

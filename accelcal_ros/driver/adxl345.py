@@ -10,10 +10,12 @@ sensor with x forward, y left, z up or set ``frame_id`` to its real frame).
 Reading strategy: below ``fifo_threshold_hz`` the driver reads the six data registers
 once per sample (bypass mode). Above it, a Python loop cannot reliably poll every
 sample, so the FIFO runs in stream mode and each poll drains every queued entry (up to
-32, i.e. 10 ms at 3200 Hz); the entries get evenly spaced stamps ending at the read
-time (:class:`FifoTimestamper`). An overrun (INT_SOURCE.Overrun) means samples were
-lost; it is counted and reported, never papered over.
+32, i.e. 10 ms at 3200 Hz); the entries get evenly spaced stamps at the measured output
+data rate, disciplined to the read time (:class:`FifoTimestamper`). An overrun
+(INT_SOURCE.Overrun) means samples were lost; it is counted and reported, never
+papered over.
 """
+from collections import deque
 import errno
 import os
 import struct
@@ -124,25 +126,81 @@ class Adxl345:
 
 class FifoTimestamper:
     """
-    Evenly spaced stamps for FIFO batches at a nominal rate.
+    Stamps for FIFO batches, evenly spaced and disciplined to the host clock.
 
-    A batch of ``n`` samples read at time ``t_read`` gets stamps
-    ``t_read - (n - 1 - k) / rate``; a stamp is never earlier than the previous batch's
-    last stamp plus one period (the batches stay monotonic and evenly spaced even when the
-    poll time jitters).
+    The ADXL345's own oscillator sets its output data rate, which may differ from the
+    nominal one by a few percent; stamping at the nominal period then drifts (1 % fast:
+    6 s ahead of the host after 10 minutes). Here the period is *measured*: the samples
+    read per host second over the last ``window_s`` (once at least ``min_span_s`` is
+    covered; clamped to +-``max_rate_error`` of nominal), reported as
+    :attr:`measured_rate_hz`. A batch of ``n`` samples read at host time ``t_read``
+    continues the previous batch, ``first = last + period``. Its last sample was taken
+    at or before ``t_read``, so ``t_read - (n - 1) period`` bounds its first: a stamp
+    beyond that bound is pulled back to it at once, and one below it is nudged forward by
+    ``gain`` times the offset (the read latency, up to a poll interval, is not a clock
+    error: the stamps follow the lower envelope of the read times). An offset beyond
+    ``resync_s`` (or two periods; lost samples, a stall) restarts the chain at the host
+    time. Stamps stay monotonic (at least half a period apart across batches).
+    :meth:`restart` forgets the chain and the rate window (call it after a FIFO overrun).
     """
 
-    def __init__(self, rate_hz):
-        self.period = 1.0 / rate_hz
+    def __init__(self, rate_hz: float, window_s: float = 10.0, min_span_s: float = 2.0,
+                 gain: float = 0.01, resync_s: float = 0.05,
+                 max_rate_error: float = 0.1) -> None:
+        self.nominal_rate_hz = float(rate_hz)
+        self.period = 1.0 / self.nominal_rate_hz
+        self.window_s = float(window_s)
+        self.min_span_s = float(min_span_s)
+        self.gain = float(gain)
+        self.resync_s = float(resync_s)
+        self.max_rate_error = float(max_rate_error)
         self.last = None
+        self.measured_rate_hz = float('nan')
+        self.resyncs = 0
+        self._reads = deque()   # (t_read, cumulative samples read)
+        self._total = 0
 
-    def stamps(self, count, t_read):
+    def restart(self) -> None:
+        """Forget the stamp chain and the rate window (samples were lost)."""
+        self.last = None
+        self._reads.clear()
+        self._total = 0
+
+    def _measure(self, count: int, t_read: float) -> None:
+        reads = self._reads
+        self._total += count
+        reads.append((t_read, self._total))
+        while len(reads) > 2 and t_read - reads[1][0] >= self.window_s:
+            reads.popleft()
+        t0, n0 = reads[0]
+        span = t_read - t0
+        if span >= self.min_span_s and self._total > n0:
+            rate = (self._total - n0) / span
+            self.measured_rate_hz = rate
+            low = self.nominal_rate_hz * (1.0 - self.max_rate_error)
+            high = self.nominal_rate_hz * (1.0 + self.max_rate_error)
+            self.period = 1.0 / min(max(rate, low), high)
+
+    def stamps(self, count: int, t_read: float) -> np.ndarray:
         """Return evenly spaced times (s) for ``count`` samples read at ``t_read``."""
         if count == 0:
             return np.empty(0)
-        first = t_read - (count - 1) * self.period
-        if self.last is not None:
-            first = max(first, self.last + self.period)
-        out = first + np.arange(count) * self.period
-        self.last = out[-1]
+        self._measure(count, t_read)
+        period = self.period
+        host_first = t_read - (count - 1) * period
+        if self.last is None:
+            first = host_first
+        else:
+            first = self.last + period
+            offset = host_first - first
+            if offset > max(self.resync_s, 2.0 * period):
+                first = host_first
+                self.resyncs += 1
+            elif offset < 0.0:
+                first = host_first
+            else:
+                first += self.gain * offset
+            first = max(first, self.last + 0.5 * period)
+        out = first + np.arange(count) * period
+        self.last = float(out[-1])
         return out

@@ -6,7 +6,8 @@ orientation and angular velocity covariance element 0 = -1: not provided; linear
 acceleration covariance from the datasheet noise model; sensor-data QoS),
 ``sim/attitude_truth`` (geometry_msgs/Vector3Stamped, x = roll, y = pitch in rad, sim
 backend only, same stamps) and ``/diagnostics`` (achieved rate, I2C errors, FIFO
-overruns). Samples are published from a dedicated thread paced by the source, so the
+overruns, and with FIFO reads the sensor's measured output data rate, to which the
+stamps are disciplined). Samples are published from a dedicated thread paced by the source, so the
 executor's timers do not limit the rate. Parameters: :data:`~accelcal_ros.driver.params.
 DRIVER_PARAMS`.
 """
@@ -20,6 +21,7 @@ from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
+import numpy as np
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
@@ -71,21 +73,25 @@ class ImuDriverNode(Node):
                 self._publish(batch)
 
     def _publish(self, batch):
+        # Per sample only plain-float assignments into pre-built messages (no numpy
+        # indexing, no new message objects).
         imu, truth = self._imu, self._truth
         imu.header.frame_id = truth.header.frame_id = self.params['frame_id']
-        accel = batch.samples_g * STANDARD_GRAVITY_M_S2
-        for k in range(len(batch)):
-            total_ns = int(batch.stamps[k] * 1e9)
-            imu.header.stamp.sec, imu.header.stamp.nanosec = divmod(total_ns, 1_000_000_000)
-            a = imu.linear_acceleration
-            a.x, a.y, a.z = float(accel[k, 0]), float(accel[k, 1]), float(accel[k, 2])
-            self.imu_pub.publish(imu)
-            if self.truth_pub is not None and batch.truth_rp is not None:
-                truth.header.stamp = imu.header.stamp
-                truth.vector.x = float(batch.truth_rp[k, 0])
-                truth.vector.y = float(batch.truth_rp[k, 1])
+        stamp, a = imu.header.stamp, imu.linear_acceleration
+        publish = self.imu_pub.publish
+        accel = (batch.samples_g * STANDARD_GRAVITY_M_S2).tolist()
+        stamps_ns = (batch.stamps * 1e9).astype(np.int64).tolist()
+        with_truth = self.truth_pub is not None and batch.truth_rp is not None
+        truth_rp = batch.truth_rp.tolist() if with_truth else None
+        for k, total_ns in enumerate(stamps_ns):
+            stamp.sec, stamp.nanosec = divmod(total_ns, 1_000_000_000)
+            a.x, a.y, a.z = accel[k]
+            publish(imu)
+            if with_truth:
+                truth.header.stamp = stamp
+                truth.vector.x, truth.vector.y = truth_rp[k]
                 self.truth_pub.publish(truth)
-        self._published += len(batch)
+        self._published += len(stamps_ns)
 
     def _publish_diagnostics(self):
         now, count = time.monotonic(), self._published
@@ -109,6 +115,9 @@ class ImuDriverNode(Node):
         values = {'rate_hz_nominal': f'{nominal:g}', 'rate_hz_achieved': f'{achieved:.2f}',
                   'samples_published': str(count), 'i2c_errors': str(stats.io_errors),
                   'fifo_overruns': str(stats.fifo_overruns), 'last_error': stats.last_error}
+        if stats.measured_rate_hz == stats.measured_rate_hz:   # not NaN: FIFO reads
+            values['output_data_rate_hz_measured'] = f'{stats.measured_rate_hz:.2f}'
+            values['fifo_stamp_resyncs'] = str(stats.stamp_resyncs)
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()

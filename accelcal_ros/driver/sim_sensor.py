@@ -10,9 +10,9 @@ next (slerp with a smoothstep profile), cycling.
 Noise (:mod:`accelcal_ros.sensor.datasheet`; ADXL345 datasheet, Rev. G, Table 1): 0.75
 LSB rms on x and y, 1.1 LSB rms on z at 100 Hz output data rate, with 3.9 mg/LSB in
 full resolution, i.e. 2.9 mg and 4.3 mg. White noise over a bandwidth of ODR/2 scales
-with ``sqrt(ODR / 100 Hz)``. The datasheet figure is the noise of the quantised output, so the analog noise drawn before
-quantisation has variance ``sigma^2 - LSB^2 / 12``. Readings are quantised to the
-full-resolution LSB (3.9 mg) and clipped to +-range.
+with ``sqrt(ODR / 100 Hz)``. The datasheet figure is the noise of the quantised output,
+so the analog noise drawn before quantisation has variance ``sigma^2 - LSB^2 / 12``.
+Readings are quantised to the full-resolution LSB (3.9 mg) and clipped to +-range.
 Everything is deterministic for a given ``seed`` (samples drawn in order).
 """
 from accelcal_ros.errors import InputError

@@ -48,6 +48,9 @@ class SourceStats:
     fifo_overruns: int = 0
     last_error: str = ''
     finished: bool = False
+    measured_rate_hz: float = float('nan')
+    """The sensor's output data rate measured from FIFO sample counts (Hz; NaN if none)."""
+    stamp_resyncs: int = 0
     extra: dict = field(default_factory=dict)
 
 
@@ -150,7 +153,7 @@ class I2cSource:
                 samples, overrun = self.device.read_fifo()
                 if overrun:
                     self.stats.fifo_overruns += 1
-                    self._stamper.last = None  # samples were lost: restart the stamp chain
+                    self._stamper.restart()  # samples were lost: restart the stamp chain
             else:
                 samples = self.device.read_sample()[None, :]
         except OSError as exc:
@@ -163,8 +166,12 @@ class I2cSource:
         self._backoff = 0.0
         self.stats.consecutive_errors = 0
         t_read = self.clock()
-        stamps = self._stamper.stamps(len(samples), t_read) if self.use_fifo \
-            else np.array([t_read])
+        if self.use_fifo:
+            stamps = self._stamper.stamps(len(samples), t_read)
+            self.stats.measured_rate_hz = self._stamper.measured_rate_hz
+            self.stats.stamp_resyncs = self._stamper.resyncs
+        else:
+            stamps = np.array([t_read])
         self.stats.samples += len(samples)
         self._next_poll = max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)

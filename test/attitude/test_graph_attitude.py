@@ -55,7 +55,7 @@ def test_attitude_node_calibration_files_and_bad_input(graph, tmp_path):
     roll, pitch = math.radians(25.0), math.radians(-40.0)
     raw = TRUTH.distort(specific_force_from_roll_pitch(roll, pitch))
 
-    # Missing file at start-up: the node logs it and runs uncalibrated.
+    # Missing file at start-up: a warning (not an error), uncalibrated until it appears.
     msg = None
     for stamp in range(1, 40):
         _publish(graph, pub, raw, stamp)
@@ -64,7 +64,16 @@ def test_attitude_node_calibration_files_and_bad_input(graph, tmp_path):
             break
     assert msg is not None, proc.output()
     assert abs(msg.vector.y - pitch) > math.radians(1.0)
-    assert 'nope.yaml' in proc.output()
+    assert 'nope.yaml does not exist yet' in proc.output()
+    assert 'ERROR' not in proc.output()
+    (tmp_path / 'nope.yaml').write_text(good.read_text())   # the calibration is run
+    for stamp in range(40, 80):
+        _publish(graph, pub, raw, stamp)
+        msg = _latest_for(attitude, stamp, timeout=0.3)
+        if msg is not None and msg.vector.y == pytest.approx(pitch, abs=1e-6):
+            break
+    assert msg.vector.y == pytest.approx(pitch, abs=1e-6), proc.output()
+    assert 'loaded full calibration from' in proc.output()
 
     # A good file at run time is applied.
     result = graph.set_parameters('attitude', {'calibration_file': str(good)})
@@ -88,15 +97,34 @@ def test_attitude_node_calibration_files_and_bad_input(graph, tmp_path):
     msg = _latest_for(attitude, 101)
     assert msg.vector.y == pytest.approx(pitch, abs=1e-6)
 
-    # NaN samples are skipped (no output, node alive); pitch +-90 gives no NaN.
+    # Impossible samples are skipped (no output, node alive, counted in /diagnostics,
+    # logged once in 10 s); pitch +-90 gives no NaN.
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    diagnostics = graph.collect(DiagnosticArray, '/diagnostics')
     _publish(graph, pub, [math.nan, 0.0, 1.0], 102)
+    _publish(graph, pub, [0.0, 0.0, 0.0], 104)
+    _publish(graph, pub, [1e300, 0.0, 0.0], 105)
+    _publish(graph, pub, [0.0, 1e300 / G, 1.0], 106)
     vertical = TRUTH.distort(specific_force_from_roll_pitch(0.0, math.radians(90.0)))
     _publish(graph, pub, vertical, 103)
     msg = _latest_for(attitude, 103)
     assert msg is not None and math.isfinite(msg.vector.x)
     assert msg.vector.y == pytest.approx(math.pi / 2, abs=1e-6)
-    assert _latest_for(attitude, 102, timeout=0.2) is None
+    for stamp in (102, 104, 105, 106):
+        assert _latest_for(attitude, stamp, timeout=0.2) is None
+        assert _latest_for(imu, stamp, timeout=0.01) is None
     out = _latest_for(imu, 103)
     assert all(math.isfinite(v) for v in out.orientation_covariance)
     assert proc.proc.poll() is None
-    assert proc.output().count('NaN') == 1
+    assert proc.output().count('sample skipped') == 1
+    counts = {}
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and counts.get('skipped_out_of_range') != '2':
+        time.sleep(0.2)
+        for array in diagnostics.snapshot()[0]:
+            for status in array.status:
+                if status.name == 'attitude: tilt':
+                    counts = {kv.key: kv.value for kv in status.values}
+    assert counts.get('skipped_nan') == '1' and counts.get('skipped_zero') == '1'
+    assert counts.get('skipped_out_of_range') == '2' and counts.get('calibrated') == 'true'

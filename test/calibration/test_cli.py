@@ -74,7 +74,9 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, recording, capsys):
     n = int(sim.period_s * 3 / 0.01)
     save_recording(short, t[:n], raw[:n] * G)
     assert main(['calibrate', str(short), '-o', str(out)]) == 1
-    assert 'too few' in capsys.readouterr().err and not out.exists()
+    err = capsys.readouterr().err
+    assert 'too few' in err and not out.exists()
+    assert 'finish' not in err and 'run accelcal calibrate again' in err  # not a service
     # Truncated recording.
     truncated = tmp_path / 'trunc.csv'
     truncated.write_text(path.read_text()[:5000].rsplit(',', 1)[0])

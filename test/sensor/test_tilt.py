@@ -133,3 +133,41 @@ def test_nan_reading_gives_none_and_bad_settings_rejected():
         TiltEstimator(time_constant_s=-1.0)
     with pytest.raises(InputError):
         TiltEstimator(noise_std_g=[0.1, 0.1])
+
+
+@pytest.mark.parametrize('raw, reason', [
+    ([0.0, 0.0, 0.0], 'zero'),
+    ([1e300, 0.0, 0.0], 'out of range'),
+    ([0.0, 1e200, 1.0], 'out of range'),
+    ([2000.0, 0.0, 0.0], 'out of range'),
+    ([np.nan, 0.0, 1.0], 'NaN'),
+    ([0.0, np.inf, 1.0], 'out of range'),
+])
+def test_impossible_input_gives_no_tilt(raw, reason):
+    est = TiltEstimator(TRUTH)
+    assert est.update(0.0, raw) is None and est.last_rejection == reason
+    assert est.update(0.01, TRUTH.distort([0.0, 0.0, 1.0])) is not None   # then recovers
+
+
+def test_free_fall_gives_no_tilt_even_with_calibration():
+    est = TiltEstimator(TRUTH)
+    assert est.update(0.0, TRUTH.distort([0.0, 0.0, 1.0])) is not None
+    assert est.update(0.01, TRUTH.distort([0.01, -0.02, 0.03])) is None   # |f| = 0.04 g
+    assert est.last_rejection == 'zero'
+
+
+@given(st.floats(-3.0, 3.0), st.floats(-1.5, 1.5), st.floats(0.0, 0.9))
+@settings(max_examples=50, deadline=None)
+def test_float_covariance_equals_the_matrix_formula(roll, pitch, alpha_time):
+    """The plain-float path equals ``J C Sigma_a C^T J^T`` computed with numpy."""
+    noise = np.array([0.003, 0.002, 0.005])
+    est = TiltEstimator(TRUTH, noise_std_g=noise, tilt_std_rad=0.001)
+    f = specific_force_from_roll_pitch(roll, pitch)
+    out = est.update(0.0, TRUTH.distort(f))
+    c = TRUTH.correction_matrix()
+    jac = angle_jacobian(f / np.linalg.norm(f))
+    cov = jac @ c @ np.diag(noise ** 2) @ c.T @ jac.T + np.eye(2) * 1e-6
+    if jac[0, 1] == 0.0 and jac[0, 2] == 0.0 or cov[0, 0] > math.pi ** 2:
+        cov[0, 0], cov[0, 1], cov[1, 0] = math.pi ** 2, 0.0, 0.0
+    np.testing.assert_allclose(out.covariance, cov, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(out.force_g, f, atol=1e-12)
