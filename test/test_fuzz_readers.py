@@ -1,7 +1,9 @@
 """
 Bounded fuzz test of every file reader: a damaged file parses or raises an AccelcalError.
 
-Each reader gets a valid file written by the package's own writer (checked to load), then
+Each reader (recording, calibration, rig, camera_info, boresight, pose and IMU CSV/YAML
+files, PCD ascii/binary/binary_compressed, PLY ascii/binary, IMU bags as mcap and ROS 1)
+gets a valid file written by the package's own writer (checked to load), then
 ``CASES`` mutations of it drawn with a fixed seed: bytes flipped, inserted or deleted,
 truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN / infinity / text /
 nothing, lines deleted, duplicated or swapped, header counts changed, an empty file. Any
@@ -131,6 +133,31 @@ def _ply_writer(binary):
     return write
 
 
+def _bag_writer(fmt):
+    def write(path):
+        import shutil
+
+        from accelcal_ros.recording.sim_bags import write_imu_bag
+
+        target = path + '.src' + ('.bag' if fmt == 'ros1' else '')
+        shutil.rmtree(target, ignore_errors=True)
+        t = np.arange(20) * 0.01
+        write_imu_bag(target, fmt, t, np.tile([0.0, 0.1, 9.8], (20, 1)))
+        if os.path.isdir(target):  # rosbag2: the one storage file of the directory
+            target = os.path.join(target, [f for f in os.listdir(target)
+                                           if f.endswith('.mcap')][0])
+        shutil.copyfile(target, path)
+    return write
+
+
+def _read_imu_bag(path):
+    from accelcal_ros.recording.bag import BagReader
+    from accelcal_ros.recording.streams import read_imu
+
+    with BagReader(path) as bag:
+        return read_imu(bag, None)
+
+
 def _read_camera_info(path):
     from accelcal_ros.camera.model import camera_model_from_mapping
     from accelcal_ros.fileio import load_yaml_mapping
@@ -175,6 +202,8 @@ READERS = {
     'pcd_binary_compressed': ('c.pcd', _pcd_writer('binary_compressed'), _read_pcd),
     'ply_ascii': ('a.ply', _ply_writer(False), _read_ply),
     'ply_binary': ('b.ply', _ply_writer(True), _read_ply),
+    'imu_bag_mcap': ('imu.mcap', _bag_writer('mcap'), _read_imu_bag),
+    'imu_bag_ros1': ('imu.bag', _bag_writer('ros1'), _read_imu_bag),
 }
 
 
