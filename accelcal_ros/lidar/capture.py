@@ -5,10 +5,12 @@ IMU samples (time s, specific force m/s^2, optional gyro rad/s) and LiDAR scans 
 points (N, 3) m in the LiDAR frame) are fed as they arrive, the two streams in any
 interleaving.
 
-Still periods. The IMU is *still* when, over the last ``min_static_s``, every gyro axis
-(or, without a gyro, every accelerometer axis) varies less than its threshold (standard
-deviation) and the mean rate is below ``gyro_rate_threshold_rad_s``; the still period
-then starts at the beginning of that window. Motion ends it. A gap in the IMU stream
+Still periods. Stillness is judged by the package's one detector,
+:class:`accelcal_ros.sensor.stillness.StillnessDetector` (accelerometer, and gyro when every
+sample has one; thresholds from :class:`~accelcal_ros.sensor.stillness.StillnessThresholds`,
+which also give the defaults of :class:`CaptureSettings`). The IMU is *still* once the
+detector's still segment has lasted ``min_static_s``; the still period starts where the
+segment began. Motion ends it (at the detector's trimmed end). A gap in the IMU stream
 longer than half of ``min_static_s`` ends it too, because the rig may have moved unseen;
 but if no motion is seen afterwards and the next still period's mean gravity agrees with
 it within ``same_position_deg``, the rig did not change its attitude (a yaw turn or a
@@ -32,27 +34,45 @@ request.
 """
 from collections import deque
 from dataclasses import dataclass, field
-from itertools import takewhile
 
 from accelcal_ros.lidar.boresight import StaticPosition
+from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+
+_STILL = StillnessThresholds()
 
 
 @dataclass
 class CaptureSettings:
-    """Thresholds of :class:`StaticCapture` (see the module docstring)."""
+    """
+    Settings of :class:`StaticCapture` (see the module docstring).
+
+    The three stillness thresholds default to the shared detector's
+    (:class:`~accelcal_ros.sensor.stillness.StillnessThresholds`; the accelerometer one
+    converted from g to m/s^2): spreads of 20 ms block means over its window.
+    """
 
     min_static_s: float = 1.0
-    gyro_std_threshold_rad_s: float = 0.01
-    gyro_rate_threshold_rad_s: float = 0.05
-    accel_std_threshold_m_s2: float = 0.08
+    gyro_std_threshold_rad_s: float = _STILL.gyro_std_rad_s
+    gyro_rate_threshold_rad_s: float = _STILL.gyro_rate_rad_s
+    accel_std_threshold_m_s2: float = _STILL.accel_std_g * STANDARD_GRAVITY_M_S2
     clouds_per_capture: int = 1
     buffer_s: float = 60.0
     auto: bool = True
     same_position_deg: float = 1.0
     max_pending_scans: int = 100
     recent_periods: int = 10
+
+    def stillness_thresholds(self) -> StillnessThresholds:
+        """Return the detector thresholds (gaps are handled by the capture, not the detector)."""
+        return StillnessThresholds(
+            window_s=min(_STILL.window_s, self.min_static_s),
+            accel_std_g=self.accel_std_threshold_m_s2 / STANDARD_GRAVITY_M_S2,
+            gyro_std_rad_s=self.gyro_std_threshold_rad_s,
+            gyro_rate_rad_s=self.gyro_rate_threshold_rad_s, min_still_s=self.min_static_s,
+            block_s=_STILL.block_s, saturation_g=_STILL.saturation_g,
+            max_gap_s=max(self.buffer_s, self.min_static_s))
 
 
 @dataclass
@@ -79,6 +99,8 @@ class StaticCapture:
     def __init__(self, settings=None, model=None):
         self.settings = settings or CaptureSettings()
         self.model = model
+        self._thresholds = self.settings.stillness_thresholds()
+        self._detector = StillnessDetector(self._thresholds, accel_unit_m_s2=1.0)
         self._imu = deque()
         self._current = None
         self._ended = deque()   # recent ended periods, newest last
@@ -87,6 +109,8 @@ class StaticCapture:
         self._pending = []
         self.positions = []
         self.out_of_order = 0
+        self._segment_start_s = -np.inf
+        self._still_end_s = None
 
     @property
     def still(self):
@@ -107,9 +131,12 @@ class StaticCapture:
         if self._imu and t - self._imu[-1][0] > 0.5 * self.settings.min_static_s:
             self._end(ended_by_motion=False)  # the rig may have moved unseen
             self._seen_since_s = t
+            self._detector = StillnessDetector(self._thresholds, accel_unit_m_s2=1.0)
         accel = np.asarray(accel, dtype=float)
         if self.model is not None:
             accel = self.model.correct(accel / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
+        if not self._detector.add(t, accel, gyro):
+            return self.still   # NaN or saturated: not used (a shock ends the segment)
         self._imu.append((t, accel, None if gyro is None else np.asarray(gyro, float)))
         while self._imu[0][0] < t - self.settings.buffer_s:
             self._imu.popleft()
@@ -127,19 +154,21 @@ class StaticCapture:
         return self.still
 
     def _window_still(self, t):
-        """Judge the last ``min_static_s`` since the last gap: True, False, or None (too few)."""
-        s = self.settings
-        since = max(t - s.min_static_s, self._seen_since_s)
-        window = list(takewhile(lambda x: x[0] >= since, reversed(self._imu)))
-        window.reverse()
-        if len(window) < 5 or window[-1][0] - window[0][0] < 0.8 * s.min_static_s:
-            return None
-        if all(x[2] is not None for x in window):
-            gyro = np.array([x[2] for x in window])
-            return bool(np.all(gyro.std(axis=0) < s.gyro_std_threshold_rad_s)
-                        and np.linalg.norm(gyro.mean(axis=0)) < s.gyro_rate_threshold_rad_s)
-        acc = np.array([x[1] for x in window])
-        return bool(np.all(acc.std(axis=0) < s.accel_std_threshold_m_s2))
+        """
+        Return True (still for ``min_static_s``), False (motion) or None (not judged yet).
+
+        A still period must not reach back before the last gap; ended segments' trimmed
+        ends are kept in ``self._still_end_s`` for :meth:`_end`.
+        """
+        det = self._detector
+        while det.ended:
+            final = det.ended.pop(0).final
+            self._still_end_s = None if final is None else final.t_end_s
+        seg = det.segment
+        if seg is None:
+            return None if np.isnan(det.motion_std) else False
+        self._segment_start_s = max(seg.t_start_s, self._seen_since_s)
+        return True if t - self._segment_start_s >= self.settings.min_static_s else None
 
     def _mean_accel(self, start, end):
         samples = [x[1] for x in self._imu if start <= x[0] <= end]
@@ -151,7 +180,7 @@ class StaticCapture:
 
     def _start(self, t):
         """Open a still period, or continue the last one when only a gap ended it."""
-        start = max(t - self.settings.min_static_s, self._seen_since_s)
+        start = self._segment_start_s
         last = self._ended[-1] if self._ended else None
         if (last is not None and not last.ended_by_motion and not self._motion_since_end
                 and last.gravity_m_s2 is not None
@@ -175,6 +204,10 @@ class StaticCapture:
         if period is None:
             return
         period.end_s = period.last_still_s
+        if ended_by_motion and self._still_end_s is not None:
+            # the detector's trimmed end: its last window already held the motion
+            period.end_s = max(period.start_s, min(period.end_s, self._still_end_s))
+        self._still_end_s = None
         period.ended_by_motion = ended_by_motion
         if not ended_by_motion:   # only a gap-ended period may be continued (_start)
             accel = self._accel_in(period)

@@ -5,18 +5,18 @@ Paper B finds the still periods from the gyro signal and takes the mean accelero
 reading minus the accelerometer bias as gravity in the IMU frame:
 ``g = (mean(a_x) - b_x, mean(a_y) - b_y, mean(a_z) - b_z)``.
 
-Here a sample is static when, over a centred window of ``window_s``, the standard
-deviation of every gyro axis is below ``gyro_std_threshold_rad_s`` and the gyro mean
-magnitude below ``gyro_rate_threshold_rad_s`` (when a gyro is logged), or else when the
-standard deviation of every accelerometer axis is below ``accel_std_threshold_m_s2``.
-Runs of static samples shorter than ``min_duration_s`` are dropped. The gravity of a
-segment is the mean specific force (REP-145: +g on the up axis, m/s^2) with, when a
-:class:`~accelcal_ros.sensor.model.SensorModel` is given, the calibration applied
-(``f = T diag(1/k) (a - b)`` in g, paper A eq. 1 / the full model).
+The still periods come from the package's one stillness detector,
+:func:`accelcal_ros.sensor.stillness.still_segments` (accelerometer, and gyro when logged;
+its thresholds are stated once, in :class:`~accelcal_ros.sensor.stillness.StillnessThresholds`).
+Segments shorter than ``min_duration_s`` are dropped and each is trimmed by ``trim_s`` at
+both ends. The gravity of a segment is the mean specific force (REP-145: +g on the up axis,
+m/s^2) with, when a :class:`~accelcal_ros.sensor.model.SensorModel` is given, the
+calibration applied (``f = T diag(1/k) (a - b)`` in g, paper A eq. 1 / the full model).
 """
 from dataclasses import dataclass
+from typing import List, Optional
 
-from accelcal_ros.errors import InputError
+from accelcal_ros.sensor.stillness import still_segments, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 
@@ -45,75 +45,43 @@ class StaticSegment:
                      / max(norm, 1e-9) / np.sqrt(1.5))
 
 
-def _moving_std(values, half):
-    """Centred moving standard deviation of each column over ``2 * half + 1`` samples."""
-    n = values.shape[0]
-    pad = np.pad(values, ((half + 1, half), (0, 0)), mode='edge')
-    c1 = np.cumsum(pad, axis=0)
-    c2 = np.cumsum(pad * pad, axis=0)
-    width = 2 * half + 1
-    s1 = c1[width:width + n] - c1[:n]
-    s2 = c2[width:width + n] - c2[:n]
-    mean = s1 / width
-    var = np.maximum(s2 / width - mean * mean, 0.0)
-    return np.sqrt(var), mean
-
-
-def static_mask(t, accel, gyro=None, window_s=0.5, gyro_std_threshold_rad_s=0.01,
-                gyro_rate_threshold_rad_s=0.05, accel_std_threshold_m_s2=0.08):
-    """Return a boolean mask of static samples (see the module docstring)."""
-    t = np.asarray(t, dtype=float)
-    accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-    if t.size != accel.shape[0]:
-        raise InputError(f'{t.size} times for {accel.shape[0]} accelerometer samples')
-    if t.size < 3:
-        return np.zeros(t.size, dtype=bool)
-    dt = float(np.median(np.diff(t)))
-    if not dt > 0:
-        raise InputError('IMU times do not increase')
-    half = max(1, int(round(window_s / dt / 2)))
-    if gyro is not None:
-        gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
-        std, mean = _moving_std(gyro, half)
-        return (np.all(std < gyro_std_threshold_rad_s, axis=1)
-                & (np.linalg.norm(mean, axis=1) < gyro_rate_threshold_rad_s))
-    std, _ = _moving_std(accel, half)
-    return np.all(std < accel_std_threshold_m_s2, axis=1)
-
-
-def find_static_segments(t, accel, gyro=None, model=None, min_duration_s=1.0,
-                         trim_s=0.1, **thresholds):
+def find_static_segments(t, accel, gyro=None, model=None, min_duration_s: Optional[float] = None,
+                         trim_s: float = 0.1,
+                         thresholds: Optional[StillnessThresholds] = None
+                         ) -> List[StaticSegment]:
     """
-    Return the :class:`StaticSegment` list of a log, longest stillness first kept in order.
+    Return the :class:`StaticSegment` list of a log (time s, accel m/s^2, gyro rad/s).
 
-    ``model`` (a SensorModel, in g) is applied to every sample before averaging; each
-    segment is trimmed by ``trim_s`` at both ends.
+    ``model`` (a SensorModel, in g) is applied to every sample before averaging;
+    ``min_duration_s`` defaults to ``thresholds.min_still_s``; each segment is trimmed by
+    ``trim_s`` at both ends. Non-finite and saturated samples are not used.
     """
-    t = np.asarray(t, dtype=float)
+    thresholds = thresholds or StillnessThresholds()
+    t = np.asarray(t, dtype=float).reshape(-1)
     accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-    mask = static_mask(t, accel, gyro, **thresholds)
     force = accel
     if model is not None:
         force = model.correct(accel / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts = np.flatnonzero(edges == 1)
-    stops = np.flatnonzero(edges == -1)
+    min_s = thresholds.min_still_s if min_duration_s is None else float(min_duration_s)
+    found = still_segments(t, accel, gyro, thresholds, accel_unit_m_s2=1.0,
+                           min_still_s=max(min_s, 1e-9))
+    usable = np.all(np.isfinite(force), axis=1)
     segments = []
-    for a, b in zip(starts, stops):
-        ta, tb = t[a] + trim_s, t[b - 1] - trim_s
-        if tb - ta < min_duration_s:
+    for seg in found:
+        ta, tb = seg.t_start_s + trim_s, seg.t_end_s - trim_s
+        if tb - ta < min_s:
             continue
         i0 = int(np.searchsorted(t, ta))
         i1 = int(np.searchsorted(t, tb, side='right'))
-        if i1 - i0 < 2:
+        chunk = force[i0:i1][usable[i0:i1]]
+        if len(chunk) < 2:
             continue
-        chunk = force[i0:i1]
         segments.append(StaticSegment(i0, i1, float(t[i0]), float(t[i1 - 1]),
-                                      chunk.mean(axis=0), chunk.std(axis=0), i1 - i0))
+                                      chunk.mean(axis=0), chunk.std(axis=0), len(chunk)))
     return segments
 
 
-def longest_static_segment(t, accel, gyro=None, model=None, **kwargs):
+def longest_static_segment(t, accel, gyro=None, model=None, **kwargs) -> Optional[StaticSegment]:
     """Return the longest :class:`StaticSegment` or None when the log is never still."""
     segments = find_static_segments(t, accel, gyro, model, **kwargs)
     if not segments:
