@@ -38,8 +38,8 @@ LIDAR_CALIBRATION_PARAMS = (
               minimum=0.1, maximum=60.0, unit='s'),
     ParamSpec('gyro_std_threshold_rad_s', _CAPTURE.gyro_std_threshold_rad_s, 'still when '
               'every gyro axis varies less', minimum=1e-5, maximum=1.0, unit='rad/s'),
-    ParamSpec('accel_std_threshold_m_s2', _CAPTURE.accel_std_threshold_m_s2, 'still (no '
-              'gyro) when every accelerometer axis varies less', minimum=1e-4, maximum=5.0,
+    ParamSpec('accel_std_threshold_m_s2', _CAPTURE.accel_std_threshold_m_s2, 'still when '
+              'every accelerometer axis (20 ms means) varies less', minimum=1e-4, maximum=5.0,
               unit='m/s^2'),
     ParamSpec('clouds_per_capture', _CAPTURE.clouds_per_capture, 'scans merged per position',
               minimum=1, maximum=100),
