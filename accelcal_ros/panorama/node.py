@@ -30,8 +30,8 @@ one; the parameter, when given, overrides it.
 """
 import time
 
+from accelcal_ros.camera.rig import resolve_imu_to_camera
 from accelcal_ros.errors import AccelcalError, InputError
-from accelcal_ros.frames import rotation_matrix_from_list
 from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
@@ -124,11 +124,8 @@ class StitcherNode(Node):
     def _imu_to_camera(self, values):
         """Return ``(rotation, where it came from)``: the parameter if given, else the rig's."""
         given = 'imu_to_camera' in (getattr(self, '_parameter_overrides', None) or {})
-        from_rig = getattr(self.rig, 'imu_to_camera', None)
-        if from_rig is not None and not given:
-            return from_rig, 'the rig file'
-        mount = rotation_matrix_from_list(values['imu_to_camera'], 'imu_to_camera')
-        return mount, 'the parameter' if given else 'the default (camera looking along +x)'
+        return resolve_imu_to_camera(self.rig, values['imu_to_camera'] if given else None,
+                                     name='parameter imu_to_camera')
 
     # -- helpers --------------------------------------------------------------------------
     def _log(self, level, text):

@@ -3,6 +3,7 @@ import math
 import re
 import time
 
+from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import ring_rig, save_rig
@@ -164,11 +165,12 @@ def test_stitcher_node_refuses_a_bad_rig(graph, tmp_path):
 @pytest.mark.graph
 def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_path):
     """Cameras never within sync_tolerance_s are reported once; wrong sizes rejected."""
-    rig = ring_rig(2, 64, 48, 55.0, 45.0)
+    rig = ring_rig(2, 64, 48, 55.0, 45.0, imu_to_camera=DEFAULT_IMU_TO_CAMERA)
     save_rig(tmp_path / 'rig.yaml', rig)
     proc = graph.start('stitcher', params={
         'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
-        'sync_tolerance_s': 0.001, 'image_reliability': 'best_effort'})
+        'sync_tolerance_s': 0.001, 'image_reliability': 'best_effort',
+        'imu_to_camera': [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)]})
     pubs = [graph.node.create_publisher(Image, f'cam{i}/image_raw', qos_profile_sensor_data)
             for i in range(2)]
     att = graph.node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
@@ -198,12 +200,13 @@ def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_p
     assert offset and -800 <= int(offset.group(1)) <= -250, proc.output()
     assert 'image on cam1/image_raw: bgr8 image is 10x10, expected 64x48' in proc.output()
     assert proc.output().count('no set of frames with stamps within') == 1
+    assert 'imu_to_camera from parameter imu_to_camera' in proc.output()
 
 
 @pytest.mark.graph
 def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
     """A set stamped in the future, then the clock going back: panoramas resume, said."""
-    rig = ring_rig(2, 64, 48, 55.0, 45.0)
+    rig = ring_rig(2, 64, 48, 55.0, 45.0, imu_to_camera=DEFAULT_IMU_TO_CAMERA)
     save_rig(tmp_path / 'rig.yaml', rig)
     topics = ['cam0/image_raw', 'cam1/image_raw']
     proc = graph.start('stitcher', params={
@@ -224,6 +227,7 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
 
     assert _feed_until(panoramas, 2, feed, 20.0), proc.output()
     assert 'incompatible QoS' in proc.output()
+    assert 'imu_to_camera from rig file' in proc.output()
     assert compressed.wait_for(1, timeout=5.0)
     jpeg = compressed.snapshot()[0][-1]
     assert jpeg.format == 'bgr8; jpeg compressed bgr8' and bytes(jpeg.data[:2]) == b'\xff\xd8'
