@@ -15,7 +15,7 @@ Zero, one or three-plus candidates give no detection, with a reason that says wh
 change (:attr:`BeaconDetection.reason`).
 """
 from dataclasses import dataclass, field
-from typing import Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
@@ -73,7 +73,7 @@ class Blob:
     saturated_px: int
     elongation: float
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, Any]:
         """Return the blob as a plain dict (for JSON and diagnostics)."""
         return {'u': self.u, 'v': self.v, 'area': self.area, 'peak': self.peak,
                 'flux': self.flux, 'saturated_px': self.saturated_px,
@@ -102,7 +102,7 @@ class BeaconDetection:
     uv_undistorted: Optional[np.ndarray] = None
     rays: Optional[np.ndarray] = None
 
-    def quality(self):
+    def quality(self) -> Dict[str, Any]:
         """Return a flat dict of quality figures (diagnostics key/values)."""
         out = {'candidates': len(self.blobs), 'brightest': self.brightest}
         out.update({f'rejected_{k}': v for k, v in self.rejected.items()})
@@ -117,7 +117,7 @@ class BeaconDetection:
         return out
 
 
-def to_grey(image):
+def to_grey(image: np.ndarray) -> np.ndarray:
     """Return a 2-D uint8 grey image from mono8 (HxW) or 3-channel (HxWx3) uint8 input."""
     import cv2
 
@@ -133,7 +133,7 @@ def to_grey(image):
     raise InputError(f'expected an HxW or HxWx3 image, got shape {image.shape}')
 
 
-def find_blobs(grey, settings):
+def find_blobs(grey: np.ndarray, settings: DetectorSettings) -> Tuple[list, dict, int]:
     """
     Return ``(blobs, rejected, brightest)``: candidates within the limits and drop counts.
 

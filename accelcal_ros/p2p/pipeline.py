@@ -11,7 +11,7 @@ solutions are resolved by continuity with the last pose when that is recent enou
 otherwise reported.
 """
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
+from typing import Any, List, Mapping, Optional, Sequence
 
 from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import AccelcalError
@@ -50,7 +50,7 @@ class FrameResult:
 class P2PPipeline:
     """Stateful P2P positioning from images, camera info and attitude (see the module text)."""
 
-    def __init__(self, values):
+    def __init__(self, values: Mapping[str, Any]) -> None:
         self.values = dict(values)
         self.camera = None
         self.camera_reason = 'no camera_info received yet'
@@ -59,7 +59,7 @@ class P2PPipeline:
         self.last_pose = None
         self.configure(self.values)
 
-    def configure(self, values):
+    def configure(self, values: Mapping[str, Any]) -> None:
         """Apply (validated) parameter values; InputError if the set is inconsistent."""
         from accelcal_ros.errors import InputError
 
@@ -85,7 +85,7 @@ class P2PPipeline:
             self.camera_reason = f'camera_info rejected: {exc}'
         return self.camera_reason or None
 
-    def add_attitude(self, stamp_s, roll, pitch):
+    def add_attitude(self, stamp_s: float, roll: float, pitch: float) -> List[FrameResult]:
         """Store an attitude; return the results of images that were waiting for it."""
         self.attitudes.add('attitude', stamp_s, (float(roll), float(pitch)))
         if self.pending is None:
@@ -101,7 +101,8 @@ class P2PPipeline:
         hit = self.attitudes.nearest(stamp_s, self.values['attitude_tolerance_s'])['attitude']
         return None if hit is None else hit[1]
 
-    def add_image(self, stamp_s, frame_id, grey, tag=None):
+    def add_image(self, stamp_s: float, frame_id: str, grey: np.ndarray,
+                  tag: Any = None) -> List[FrameResult]:
         """
         Process an image (grey uint8) or hold it until its attitude arrives.
 

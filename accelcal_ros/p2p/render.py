@@ -14,6 +14,7 @@ from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ['CameraModel', 'draw_spots', 'pose_from_camera_attitude', 'project',
            'render_emitters']
@@ -48,7 +49,8 @@ def project(points: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
     return camera.project(in_camera), in_camera[:, 2]
 
 
-def draw_spots(shape, uv, sigma_px=1.5, peak=230.0, background=8.0):
+def draw_spots(shape: Tuple[int, int], uv: ArrayLike, sigma_px: float = 1.5,
+               peak: float = 230.0, background: float = 8.0) -> np.ndarray:
     """Return a float image of Gaussian spots of ``sigma_px`` at sub-pixel ``uv`` ``(N, 2)``."""
     height, width = shape
     image = np.full((height, width), float(background))
@@ -66,9 +68,11 @@ def draw_spots(shape, uv, sigma_px=1.5, peak=230.0, background=8.0):
     return image
 
 
-def render_emitters(points, rotation, translation, camera, sigma_px=1.5, peak=230.0,
-                    background=8.0, blur_sigma_px=0.0, noise_std=2.0, seed=0,
-                    extra_uv=()):
+def render_emitters(points: ArrayLike, rotation: np.ndarray, translation: ArrayLike,
+                    camera: CameraModel, sigma_px: float = 1.5, peak: float = 230.0,
+                    background: float = 8.0, blur_sigma_px: float = 0.0,
+                    noise_std: float = 2.0, seed: int = 0, extra_uv: ArrayLike = ()
+                    ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Render the emitters ``points`` ``(N, 3)`` (object frame) seen at pose ``(R, t)``.
 

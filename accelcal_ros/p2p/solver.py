@@ -56,10 +56,12 @@ direction (looking up): the limit of a camera pitched towards vertical.
 """
 from dataclasses import dataclass
 import math
+from typing import Any, Dict, List, Union
 
 from accelcal_ros.errors import GeometryError, InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, specific_force_from_roll_pitch
 import numpy as np
+from numpy.typing import ArrayLike
 
 OK = 0
 NOT_FINITE = 1
@@ -115,16 +117,16 @@ class P2PSolution:
     depths: np.ndarray
 
     @property
-    def camera_position(self):
+    def camera_position(self) -> np.ndarray:
         """Return the camera centre in the object frame, ``-R^T t`` (m)."""
         return -self.rotation.T @ self.translation
 
     @property
-    def range_m(self):
+    def range_m(self) -> float:
         """Return the distance from the camera centre to the object origin, ``||t||`` (m)."""
         return float(np.linalg.norm(self.translation))
 
-    def to_dict(self):
+    def to_dict(self) -> Dict[str, Any]:
         """Return the JSON form of ``accelcal p2p-solve``: ``R`` (9 row-major), ``t``, ``yaw``."""
         return {'R': [float(v) for v in self.rotation.reshape(-1)],
                 't': [float(v) for v in self.translation],
@@ -153,11 +155,11 @@ class BatchResult:
         """Return the number of problems."""
         return len(self.status)
 
-    def reason(self, index):
+    def reason(self, index: int) -> str:
         """Return the text reason of problem ``index``."""
         return REASONS[int(self.status[index])]
 
-    def solutions(self, index):
+    def solutions(self, index: int) -> List['P2PSolution']:
         """Return the valid :class:`P2PSolution` list of problem ``index``."""
         out = []
         for slot in range(2):
@@ -169,7 +171,7 @@ class BatchResult:
         return out
 
 
-def level_basis(up):
+def level_basis(up: ArrayLike) -> np.ndarray:
     """
     Return rotations ``A`` ``(..., 3, 3)`` with ``A @ [0, 0, 1] = up`` for unit ``up``.
 
@@ -187,7 +189,7 @@ def level_basis(up):
     return np.stack([b1, b2, up], axis=-1)
 
 
-def yaw_from_rotation(rotation):
+def yaw_from_rotation(rotation: ArrayLike) -> Union[float, np.ndarray]:
     """
     Return the camera's yaw (rad, ``(-pi, pi]``) from ``R`` (object to camera), ``(..., 3, 3)``.
 
@@ -207,7 +209,8 @@ def yaw_from_rotation(rotation):
     return float(yaw) if np.ndim(yaw) == 0 else yaw
 
 
-def down_from_roll_pitch(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def down_from_roll_pitch(roll: ArrayLike, pitch: ArrayLike,
+                         imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """
     Return the unit "down" direction(s) in the camera frame from IMU roll/pitch (rad).
 
@@ -219,7 +222,7 @@ def down_from_roll_pitch(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
     return down_body @ np.asarray(imu_to_camera, dtype=float).T
 
 
-def rays_from_pixels(uv, camera_matrix):
+def rays_from_pixels(uv: ArrayLike, camera_matrix: ArrayLike) -> np.ndarray:
     """
     Return normalised rays ``[x, y, 1]`` ``(..., 3)`` of undistorted pixels ``uv`` ``(..., 2)``.
 
@@ -251,7 +254,7 @@ def _quadratic_roots(a, b, c):
     return first, second, real, double
 
 
-def solve_batch(rays, points, down):
+def solve_batch(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> 'BatchResult':
     """
     Solve ``N`` P2P problems at once (vectorised numpy; see the module text for the method).
 
@@ -369,7 +372,7 @@ def solve_batch(rays, points, down):
                        depth, valid, status)
 
 
-def solve(rays, points, down):
+def solve(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> List['P2PSolution']:
     """
     Solve one P2P problem; return every valid :class:`P2PSolution` (one or two).
 
@@ -497,7 +500,8 @@ def _solve_one(rays, points, down):
     return OK, solutions
 
 
-def solve_pixels(uv, camera_matrix, points, down):
+def solve_pixels(uv: ArrayLike, camera_matrix: ArrayLike, points: ArrayLike,
+                 down: ArrayLike) -> List['P2PSolution']:
     """
     Solve from undistorted pixel coordinates ``uv`` ``(2, 2)`` and the camera matrix ``K``.
 

@@ -37,6 +37,7 @@ Two builders give the same map:
 """
 import math
 import time
+from typing import Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.camera import distort_normalized, undistort_normalized
 from accelcal_ros.errors import InputError
@@ -50,6 +51,11 @@ from accelcal_ros.panorama.rig_projection import (_SIDE_INVALID, DISTORTION_RADI
                                                   reference_heading_rad, RigProjection,
                                                   tilt_matrix)
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import Rig
 
 __all__ = ['CENTRE_CHECK_FRACTION', 'distort_normalized', 'DISTORTION_RADIUS_MARGIN',
            'FIXED_POINT_LIMIT', 'frame_border_pixels', 'frame_radius_and_limit2',
@@ -73,8 +79,9 @@ class LookupBuilder(MapBuilder):
     checked at its centre).
     """
 
-    def __init__(self, rig, geometry, imu_to_camera=DEFAULT_IMU_TO_CAMERA, grid_step=20,
-                 tolerance_px=0.1):
+    def __init__(self, rig: 'Rig', geometry: 'PanoramaGeometry',
+                 imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA, grid_step: int = 20,
+                 tolerance_px: float = 0.1) -> None:
         if isinstance(grid_step, bool) or int(grid_step) != grid_step or grid_step < 4:
             raise InputError(f'grid_step must be an integer >= 4, got {grid_step!r}')
         if not (math.isfinite(tolerance_px) and tolerance_px > 0):
@@ -148,7 +155,8 @@ class LookupBuilder(MapBuilder):
         return step
 
     # -- builders -------------------------------------------------------------------------
-    def classify(self, q, node_rows=None):
+    def classify(self, q: np.ndarray, node_rows: Optional[Tuple[int, int]] = None
+                 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """
         Classify the cells from the exact values at the nodes (and, where needed, more).
 
@@ -335,7 +343,7 @@ class LookupBuilder(MapBuilder):
         invalid = (side & _SIDE_INVALID) != 0
         return np.where(invalid, self._invalid_is_far[label], dist >= self._far)
 
-    def build_fast(self, roll, pitch):
+    def build_fast(self, roll: float, pitch: float) -> np.ndarray:
         """
         Return the map from the coarse grid, interpolation, and exact mixed cells.
 

@@ -8,10 +8,17 @@ A map is a float32 array ``(height, width, 2)`` of mosaic coordinates ``(x, y)``
 (:class:`~.lookup.LookupBuilder`), and the maps of feathered blending.
 """
 
+from typing import Tuple, TYPE_CHECKING, Union
+
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.rig_projection import RigProjection
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import Rig
 
 
 class MapBuilder(RigProjection):
@@ -22,8 +29,8 @@ class MapBuilder(RigProjection):
     :attr:`band` is ``(first, last + 1)``: the rows some camera saw in the last map.
     """
 
-    def __init__(self, rig, geometry, imu_to_camera=DEFAULT_IMU_TO_CAMERA,
-                 gap: int = 32) -> None:
+    def __init__(self, rig: 'Rig', geometry: 'PanoramaGeometry',
+                 imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA, gap: int = 32) -> None:
         super().__init__(rig, geometry, imu_to_camera)
         self._place_images(gap)
         self._set_ray_tables(0, geometry.width, geometry.height)
@@ -45,7 +52,8 @@ class MapBuilder(RigProjection):
         self._sin_el = np.sin(el).astype(np.float32)
         self._cos_el = np.cos(el).astype(np.float32)
 
-    def to_mosaic(self, label, x, y, side):
+    def to_mosaic(self, label: np.ndarray, x: np.ndarray, y: np.ndarray,
+                  side: np.ndarray) -> np.ndarray:
         """Mosaic coordinates ``(N, 2)`` float32 of :meth:`evaluate`'s output."""
         out = np.empty((len(label), 2), np.float32)
         out[:, 0] = x + self._offsets[label, 0]
@@ -63,7 +71,8 @@ class MapBuilder(RigProjection):
         np.multiply(ce, self._cos_az[u], out=rays[2])
         return rays
 
-    def build_exact(self, roll, pitch, with_labels=False, rows_per_chunk=8):
+    def build_exact(self, roll: float, pitch: float, with_labels: bool = False,
+                    rows_per_chunk: int = 8) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
         """
         Evaluate every pixel: map ``(H, W, 2)`` float32 (and labels, -1 where unseen).
 
@@ -87,7 +96,8 @@ class MapBuilder(RigProjection):
         self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
         return (out, labels) if with_labels else out
 
-    def build_blend(self, roll, pitch, width_rad, rows_per_chunk=8):
+    def build_blend(self, roll: float, pitch: float, width_rad: float,
+                    rows_per_chunk: int = 8) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """
         Exact maps for feathered blending: ``(map1, map2, weight1)``.
 

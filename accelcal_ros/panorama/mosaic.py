@@ -7,6 +7,7 @@ that bilinear interpolation next to a frame edge fades to black, as it does outs
 lone frame. Pixel coordinates follow OpenCV (integers at pixel centres).
 """
 from dataclasses import dataclass
+from typing import Any
 
 from accelcal_ros.errors import InputError
 
@@ -31,7 +32,7 @@ class MosaicLayout:
     gap: int
 
     @classmethod
-    def for_rig(cls, rig, gap=32, limit=FIXED_POINT_LIMIT):
+    def for_rig(cls, rig: Any, gap: int = 32, limit: int = FIXED_POINT_LIMIT) -> 'MosaicLayout':
         """Place the images left to right, wrapping to a new row before ``limit`` px."""
         offsets, x, y, row_h, width = [], gap, gap, 0, 0
         for cam in rig.cameras:

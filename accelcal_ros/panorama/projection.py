@@ -34,9 +34,11 @@ Both projections are separable: azimuth depends on the column only, elevation on
 only, which :mod:`.lookup` exploits.
 """
 from dataclasses import dataclass
+from typing import Tuple
 
 from accelcal_ros.errors import InputError
 import numpy as np
+from numpy.typing import ArrayLike
 
 PROJECTIONS = ('spherical', 'cylindrical')
 MAX_CYLINDRICAL_FOV_V_DEG = 170.0
@@ -79,16 +81,16 @@ class PanoramaGeometry:
         object.__setattr__(self, 'fov_v_deg', fov_v)
 
     @property
-    def shape(self):
+    def shape(self) -> Tuple[int, int]:
         """Return ``(height, width)``."""
         return self.height, self.width
 
-    def azimuth_rad(self, u):
+    def azimuth_rad(self, u: ArrayLike) -> np.ndarray:
         """Azimuth (rad, positive right) of continuous column ``u`` (integers = centres)."""
         u = np.asarray(u, dtype=float)
         return np.radians(self.fov_h_deg) * ((u + 0.5) / self.width - 0.5)
 
-    def elevation_rad(self, v):
+    def elevation_rad(self, v: ArrayLike) -> np.ndarray:
         """Elevation (rad, positive up) of continuous row ``v`` (integers = centres)."""
         v = np.asarray(v, dtype=float)
         t = 0.5 - (v + 0.5) / self.height
@@ -96,12 +98,12 @@ class PanoramaGeometry:
             return np.radians(self.fov_v_deg) * t
         return np.arctan(2.0 * t * np.tan(np.radians(self.fov_v_deg) / 2.0))
 
-    def column_from_azimuth(self, azimuth_rad):
+    def column_from_azimuth(self, azimuth_rad: ArrayLike) -> np.ndarray:
         """Continuous column of an azimuth (inverse of :meth:`azimuth_rad`)."""
         a = np.asarray(azimuth_rad, dtype=float)
         return (a / np.radians(self.fov_h_deg) + 0.5) * self.width - 0.5
 
-    def row_from_elevation(self, elevation_rad):
+    def row_from_elevation(self, elevation_rad: ArrayLike) -> np.ndarray:
         """Continuous row of an elevation (inverse of :meth:`elevation_rad`)."""
         e = np.asarray(elevation_rad, dtype=float)
         if self.projection == 'spherical':
@@ -110,18 +112,18 @@ class PanoramaGeometry:
             t = np.tan(e) / (2.0 * np.tan(np.radians(self.fov_v_deg) / 2.0))
         return (0.5 - t) * self.height - 0.5
 
-    def horizon_row(self):
+    def horizon_row(self) -> float:
         """Row coordinate of the true horizon, ``(H - 1) / 2``."""
         return (self.height - 1) / 2.0
 
-    def pixels_per_radian_vertical(self, elevation_rad=0.0):
+    def pixels_per_radian_vertical(self, elevation_rad: ArrayLike = 0.0) -> np.ndarray:
         """Rows per radian of elevation at ``elevation_rad`` (for pixel error budgets)."""
         if self.projection == 'spherical':
             return self.height / np.radians(self.fov_v_deg)
         scale = self.height / (2.0 * np.tan(np.radians(self.fov_v_deg) / 2.0))
         return scale / np.cos(elevation_rad) ** 2
 
-    def rays(self, u, v):
+    def rays(self, u: ArrayLike, v: ArrayLike) -> np.ndarray:
         """
         Return unit rays ``(..., 3)`` in the panorama frame ``P`` for pixel coordinates.
 
@@ -129,7 +131,7 @@ class PanoramaGeometry:
         """
         return rays_from_angles(self.azimuth_rad(u), self.elevation_rad(v))
 
-    def pixels(self, rays):
+    def pixels(self, rays: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
         """Continuous ``(u, v)`` of rays ``(..., 3)`` in frame ``P`` (any length)."""
         r = np.asarray(rays, dtype=float)
         azimuth = np.arctan2(r[..., 0], r[..., 2])
@@ -137,7 +139,7 @@ class PanoramaGeometry:
         return self.column_from_azimuth(azimuth), self.row_from_elevation(elevation)
 
 
-def rays_from_angles(azimuth_rad, elevation_rad):
+def rays_from_angles(azimuth_rad: ArrayLike, elevation_rad: ArrayLike) -> np.ndarray:
     """Return unit rays in frame ``P`` from azimuth (right +), elevation (up +), radians."""
     a, e = np.broadcast_arrays(np.asarray(azimuth_rad, dtype=float),
                                np.asarray(elevation_rad, dtype=float))

@@ -26,19 +26,28 @@ rig cameras' :class:`~accelcal_ros.camera.CameraModel` (``plumb_bob`` only here:
 forward model is evaluated in float32 from a per-camera table).
 """
 import math
+from typing import Any, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.camera import distort_normalized, PLUMB_BOB
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rotation_from_rpy_radians
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import Rig
 
 DISTORTION_RADIUS_MARGIN = 1.5
 """Rays farther from the axis than this times the frame's largest radius are rejected."""
 
+Evaluation = Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""``(label, x, y, side)`` of :meth:`RigProjection.evaluate`."""
+
 _SIDE_LEFT, _SIDE_RIGHT, _SIDE_TOP, _SIDE_BOTTOM, _SIDE_INVALID = 1, 2, 4, 8, 16
 
 
-def reference_heading_rad(imu_to_camera):
+def reference_heading_rad(imu_to_camera: ArrayLike) -> float:
     """
     Return the heading (yaw, rad, REP-103) of the reference camera's axis in the body frame.
 
@@ -53,7 +62,8 @@ def reference_heading_rad(imu_to_camera):
     return math.atan2(axis_body[1], axis_body[0])
 
 
-def tilt_matrix(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def tilt_matrix(roll: float, pitch: float,
+                imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """
     Rotation ``T`` taking panorama-frame rays into the reference camera frame.
 
@@ -66,12 +76,14 @@ def tilt_matrix(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
     return c @ rotation_from_rpy_radians(roll, pitch).T @ rot_z(yaw0) @ DEFAULT_IMU_TO_CAMERA.T
 
 
-def normalized_from_pixels(camera, px, py):
+def normalized_from_pixels(camera: Any, px: ArrayLike,
+                           py: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
     """Return normalized undistorted coordinates ``(x, y)`` of pixels of ``camera``."""
     return getattr(camera, 'model', camera).normalized_from_pixels(px, py)
 
 
-def frame_border_pixels(camera, outset=0.0, per_side=64):
+def frame_border_pixels(camera: Any, outset: float = 0.0,
+                        per_side: int = 64) -> Tuple[np.ndarray, np.ndarray]:
     """
     Pixel coordinates ``(xs, ys)`` walking once around a frame, clockwise from top left.
 
@@ -88,7 +100,7 @@ def frame_border_pixels(camera, outset=0.0, per_side=64):
     return xs, ys
 
 
-def frame_radius_and_limit2(camera):
+def frame_radius_and_limit2(camera: Any) -> Tuple[float, float]:
     """
     Return the frame's largest normalized radius and the largest squared radius accepted.
 
@@ -125,7 +137,8 @@ class RigProjection:
     back within its frame or a reference camera looking straight up or down.
     """
 
-    def __init__(self, rig, geometry, imu_to_camera=DEFAULT_IMU_TO_CAMERA) -> None:
+    def __init__(self, rig: 'Rig', geometry: 'PanoramaGeometry',
+                 imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA) -> None:
         for cam in rig.cameras:
             if cam.distortion_model != PLUMB_BOB:
                 raise InputError(f'camera {cam.name!r}: the panorama supports the plumb_bob '
@@ -187,7 +200,7 @@ class RigProjection:
         cosine = np.clip(np.sum(rays * np.roll(rays, -1, axis=1), axis=0), -1.0, 1.0)
         return rays, 0.5 * float(np.arccos(cosine).max())
 
-    def seen_rows(self, q):
+    def seen_rows(self, q: np.ndarray) -> Tuple[int, int]:
         """
         Return ``(first, last + 1)``: a row range holding every pixel any camera sees.
 
@@ -227,12 +240,13 @@ class RigProjection:
         last = min(g.height, int(math.ceil(last)) + 2)
         return (first, last) if last > first else (0, 0)
 
-    def camera_rotations(self, roll, pitch):
+    def camera_rotations(self, roll: float, pitch: float) -> np.ndarray:
         """Return ``Q_i = R_0i T`` (n, 3, 3): panorama frame -> camera ``i``, float64."""
         t = tilt_matrix(roll, pitch, self.imu_to_camera)
         return np.stack([cam.R @ t for cam in self.rig.cameras])
 
-    def evaluate(self, rays, rotations, only=None):
+    def evaluate(self, rays: ArrayLike, rotations: np.ndarray,
+                 only: Optional[int] = None) -> Evaluation:
         """
         Project panorama-frame rays ``(N, 3)`` into the rig (eq. 6, eq. 7, projection).
 
@@ -292,7 +306,8 @@ class RigProjection:
         code[invalid] = _SIDE_INVALID
         return label, px, py, code
 
-    def evaluate_parallel(self, rays, rotations, min_chunk=16384):
+    def evaluate_parallel(self, rays: np.ndarray, rotations: np.ndarray,
+                          min_chunk: int = 16384) -> Evaluation:
         """
         Return :meth:`evaluate` of rays stored ``(3, N)``, split over :attr:`workers` threads.
 

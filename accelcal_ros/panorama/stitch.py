@@ -19,15 +19,17 @@ offline.
 """
 import math
 import time
+from typing import Any, Optional, Sequence
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
 from accelcal_ros.panorama.rig import resolve_imu_to_camera
 from accelcal_ros.panorama.rig_projection import tilt_matrix
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def rotation_angle_deg(a, b):
+def rotation_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     """Return the angle (degrees) of the rotation ``a b^T`` between two rotation matrices."""
     cosine = (np.trace(a @ b.T) - 1.0) / 2.0
     return math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
@@ -57,9 +59,10 @@ class Stitcher:
         panorama = stitcher.render()             # owned by the stitcher: copy to keep
     """
 
-    def __init__(self, rig, geometry, imu_to_camera=None, grid_step=20,
-                 tolerance_px=0.1, rebuild_threshold_deg=0.01, blend_width_deg=0.0,
-                 channels=3):
+    def __init__(self, rig: Any, geometry: Any, imu_to_camera: Optional[ArrayLike] = None,
+                 grid_step: int = 20, tolerance_px: float = 0.1,
+                 rebuild_threshold_deg: float = 0.01, blend_width_deg: float = 0.0,
+                 channels: int = 3) -> None:
         import cv2
 
         if channels not in (1, 3):
@@ -96,7 +99,7 @@ class Stitcher:
         self.last_rebuild_s = float('nan')
 
     # -- attitude -------------------------------------------------------------------------
-    def needs_rebuild(self, roll, pitch):
+    def needs_rebuild(self, roll: float, pitch: float) -> bool:
         """Return True when the tilt moved more than the threshold since the last build."""
         if self._tilt is None:
             return True
@@ -104,7 +107,7 @@ class Stitcher:
                                    self._tilt)
         return moved > self.rebuild_threshold_deg
 
-    def set_attitude(self, roll, pitch, force=False):
+    def set_attitude(self, roll: float, pitch: float, force: bool = False) -> bool:
         """
         Set the reference camera's roll and pitch (radians, REP-103 body attitude).
 
@@ -131,13 +134,13 @@ class Stitcher:
         return True
 
     # -- images ---------------------------------------------------------------------------
-    def mosaic_view(self, index):
+    def mosaic_view(self, index: int) -> np.ndarray:
         """Return the mosaic region of camera ``index`` (a writable view)."""
         cam = self.rig.cameras[index]
         x0, y0 = self.builder.layout.offsets[index]
         return self.mosaic[y0:y0 + cam.height, x0:x0 + cam.width]
 
-    def set_image(self, index, image):
+    def set_image(self, index: int, image: np.ndarray) -> None:
         """
         Copy camera ``index``'s image (uint8, HxW or HxWx3) into the mosaic.
 
@@ -179,7 +182,7 @@ class Stitcher:
         for i, image in enumerate(images):
             self._copy_in(i, image)
 
-    def update(self, roll, pitch, images):
+    def update(self, roll: float, pitch: float, images: Sequence[np.ndarray]) -> bool:
         """
         Set the attitude (radians) and one image per rig camera (None: camera blacked out).
 
@@ -208,12 +211,12 @@ class Stitcher:
         finally:
             copies.result()
 
-    def clear_image(self, index):
+    def clear_image(self, index: int) -> None:
         """Black out camera ``index`` (a stalled camera leaves its sector black)."""
         self._copy_in(index, None)
 
     # -- output ---------------------------------------------------------------------------
-    def render(self):
+    def render(self) -> np.ndarray:
         """
         Return the panorama of the current mosaic (an internal buffer: copy to keep it).
 
@@ -254,12 +257,12 @@ class Stitcher:
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return out
 
-    def stitch(self, images, roll, pitch):
+    def stitch(self, images: Sequence[np.ndarray], roll: float, pitch: float) -> np.ndarray:
         """Set the attitude and every image, and return a copy of the panorama."""
         self.update(roll, pitch, images)
         return self.render().copy()
 
-    def coverage(self):
+    def coverage(self) -> np.ndarray:
         """
         Return the mask of panorama pixels some camera sees with the current map.
 
