@@ -15,12 +15,14 @@ def register(subparsers, study_subparsers):
     """Add this feature's subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
         'stitch', help='stitch one set of rig images into a levelled panorama')
-    p.add_argument('images', nargs='+', help='camera images, in rig order')
+    p.add_argument('images', nargs='+', help='camera images, in rig order; or one BAG '
+                   '(rosbag2 directory, .mcap, .db3, ROS 1 .bag) with --images TOPIC...')
+    _add_stitch_bag_arguments(p)
     p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
                    'K, D, R; optional imu_to_camera)')
-    p.add_argument('--roll', type=angle_deg(180.0), required=True,
+    p.add_argument('--roll', type=angle_deg(180.0),
                    help='reference camera roll, degrees (REP-103 body attitude)')
-    p.add_argument('--pitch', type=angle_deg(90.0), required=True,
+    p.add_argument('--pitch', type=angle_deg(90.0),
                    help='reference camera pitch, degrees (REP-103: nose down positive)')
     p.add_argument('--fov-h', type=float_in(0.0, 360.0, low_open=True), default=180.0,
                    help='horizontal extent, deg (180)')
@@ -96,6 +98,11 @@ def _stitch(args):
     from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.panorama.stitch import Stitcher
 
+    if _is_bag_input(args):
+        return _stitch_bag(args)
+    if args.roll is None or args.pitch is None:
+        raise InputError('stitch needs --roll and --pitch for image files (a BAG takes '
+                         '--attitude or --imu)')
     rig = load_rig(args.rig)
     if len(args.images) != len(rig):
         raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
@@ -124,6 +131,85 @@ def _stitch(args):
           f'panorama, {geometry.fov_h_deg:g} x {geometry.fov_v_deg:g} deg, '
           f'{100.0 * seen:.1f} % covered by {len(rig)} cameras; horizon at row '
           f'{geometry.horizon_row():g}')
+    return 0
+
+
+def _add_stitch_bag_arguments(p):
+    """Options of ``stitch BAG``: image topics, attitude source, output video or folder."""
+    from accelcal_ros.recording.cli_support import add_stamp_argument
+
+    p.add_argument('--images', dest='image_topics', nargs='+', metavar='TOPIC',
+                   help='bag: one sensor_msgs/Image or CompressedImage topic per camera, in rig '
+                        'order (-o then names a video, .mp4/.avi/.mkv, or a folder of PNGs)')
+    p.add_argument('--attitude', metavar='TOPIC',
+                   help='bag: geometry_msgs/Vector3Stamped topic of the attitude node')
+    p.add_argument('--imu', metavar='TOPIC',
+                   help='bag: sensor_msgs/Imu topic; roll/pitch from its accelerometer, '
+                        'calibrated with --calibration')
+    p.add_argument('--calibration', metavar='YAML', help='bag: accelerometer calibration')
+    p.add_argument('--sync-s', type=float_in(0.0, 10.0, low_open=True), default=0.05,
+                   help='bag: the images of one frame lie within this of each other (s)')
+    p.add_argument('--fps', type=float_in(0.0, 1000.0, low_open=True),
+                   help='bag: video frame rate (default: from the frame stamps)')
+    add_stamp_argument(p)
+
+
+def _is_bag_input(args):
+    from accelcal_ros.recording.cli_support import is_bag
+
+    return len(args.images) == 1 and is_bag(args.images[0])
+
+
+def _stitch_bag(args):
+    """One levelled panorama per frame set of a recorded rig (video or PNG folder)."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.panorama.projection import PanoramaGeometry
+    from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
+    from accelcal_ros.panorama.stitch import Stitcher
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.recording.stitch_bag import FrameSink, stitch_recording
+    from accelcal_ros.recording.streams import attitude_series
+    import numpy as np
+
+    rig = load_rig(args.rig)
+    topics = args.image_topics or [None]
+    if len(topics) != len(rig):
+        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras '
+                         f'({", ".join(rig.names)}); give one topic per camera, in rig order')
+    model = None
+    if args.calibration:
+        from accelcal_ros.sensor.calibration_file import load_sensor_model
+
+        model = load_sensor_model(args.calibration)
+    geometry = PanoramaGeometry(args.width, args.height, args.fov_h, args.fov_v,
+                                args.projection)
+    imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
+    stitcher = Stitcher(rig, geometry, imu_to_camera, blend_width_deg=args.blend_deg)
+    with open_bag(args.images[0], args.stamp) as bag:
+        t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
+        warn(warnings)
+        fps = args.fps
+        if fps is None:
+            first = bag.select_topic(topics[0], ('sensor_msgs/Image',
+                                                 'sensor_msgs/CompressedImage'), '--images')
+            count = bag.topics()[first].count
+            span = (t[-1] - t[0]) if len(t) > 1 else 0.0
+            fps = float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
+        sink = FrameSink(args.output, fps)
+        ok = False
+        try:
+            counts = stitch_recording(bag, stitcher, topics, (t, roll, pitch), sink,
+                                      args.sync_s)
+            ok = counts.frames > 0
+        finally:
+            sink.close(ok)
+    if not counts.frames:
+        raise InputError(f'no complete frame set with an attitude in {args.images[0]} '
+                         f'({counts.images} images, {counts.no_attitude} sets without '
+                         'attitude): check --images, --sync-s and the attitude topic')
+    note = f', {counts.no_attitude} sets skipped (no attitude)' if counts.no_attitude else ''
+    print(f'wrote {args.output}: {counts.frames} panoramas {geometry.width}x{geometry.height} '
+          f'at {fps:.1f} fps from {counts.images} images{note}')
     return 0
 
 

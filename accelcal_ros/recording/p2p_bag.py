@@ -14,36 +14,8 @@ from typing import Iterator, Optional, Tuple
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagReader
-from accelcal_ros.recording.streams import message_time_s, read_attitude, read_imu
+from accelcal_ros.recording.streams import message_time_s
 import numpy as np
-
-
-def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Optional[str],
-                    model=None) -> Tuple[np.ndarray, np.ndarray, np.ndarray, list]:
-    """Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic."""
-    if attitude_topic is not None or imu_topic is None:
-        try:
-            att = read_attitude(bag, attitude_topic)
-            return att.t, att.roll, att.pitch, att.warnings
-        except InputError:
-            if attitude_topic is not None:
-                raise
-    from accelcal_ros.sensor.tilt import TiltEstimator
-    from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
-
-    imu = read_imu(bag, imu_topic, '--imu')
-    estimator = TiltEstimator(model)
-    keep_t, roll, pitch = [], [], []
-    for ti, ai in zip(imu.t, imu.accel / STANDARD_GRAVITY_M_S2):
-        est = estimator.update(float(ti), ai)
-        if est is not None:
-            keep_t.append(ti)
-            roll.append(est.roll)
-            pitch.append(est.pitch)
-    if not keep_t:
-        raise InputError(f'{imu.topic}: no sample gives a roll/pitch (all NaN or zero?)')
-    t = imu.epoch_ns / 1e9 + np.array(keep_t)
-    return t, np.array(roll), np.array(pitch), imu.warnings
 
 
 def first_camera_info(bag: BagReader, topic: Optional[str]) -> dict:

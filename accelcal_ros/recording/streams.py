@@ -11,7 +11,7 @@ the times go backwards or jump, and when the header stamps are far from the rece
 is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
@@ -211,3 +211,31 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
     t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
     t, (rp,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
     return AttitudeStream(name, t, rp[:, 0], rp[:, 1], warnings + more)
+
+
+def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Optional[str],
+                    model=None) -> Tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic."""
+    if attitude_topic is not None or imu_topic is None:
+        try:
+            att = read_attitude(bag, attitude_topic)
+            return att.t, att.roll, att.pitch, att.warnings
+        except InputError:
+            if attitude_topic is not None:
+                raise
+    from accelcal_ros.sensor.tilt import TiltEstimator
+    from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
+
+    imu = read_imu(bag, imu_topic, '--imu')
+    estimator = TiltEstimator(model)
+    keep_t, roll, pitch = [], [], []
+    for ti, ai in zip(imu.t, imu.accel / STANDARD_GRAVITY_M_S2):
+        est = estimator.update(float(ti), ai)
+        if est is not None:
+            keep_t.append(ti)
+            roll.append(est.roll)
+            pitch.append(est.pitch)
+    if not keep_t:
+        raise InputError(f'{imu.topic}: no sample gives a roll/pitch (all NaN or zero?)')
+    t = imu.epoch_ns / 1e9 + np.array(keep_t)
+    return t, np.array(roll), np.array(pitch), imu.warnings
