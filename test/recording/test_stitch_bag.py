@@ -22,7 +22,7 @@ def _attitude(k):
 
 @pytest.fixture(scope='module')
 def recording(tmp_path_factory):
-    """A 3-camera rig swinging in roll/pitch, recorded with its attitude and IMU."""
+    """Record a 3-camera rig swinging in roll/pitch, with its attitude and IMU."""
     root = tmp_path_factory.mktemp('stitch')
     rig = ring_rig(3, 320, 240, 275.0, 45.0, distortion=(-0.08, 0.01, 0, 0, 0))
     save_rig(root / 'rig.yaml', rig)
