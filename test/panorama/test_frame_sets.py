@@ -192,3 +192,18 @@ def test_the_worker_thread_hands_sets_on_and_survives_errors():
     finally:
         worker.close()
     assert got == [10.0, 11.0] and isinstance(errors[0], ValueError)
+
+
+def test_a_dropped_frame_costs_one_set_only():
+    """Camera 1 misses one frame (a lossy link): that set is skipped, the next one is whole."""
+    policy, log = _policy()
+    stamps = []
+    for k in range(10):
+        stamp, now = 10.0 + 0.1 * k, 100.0 + 0.1 * k
+        _feed(policy, stamp, now, cameras=(0, 2) if k == 4 else (0, 1, 2))
+        frame_set = policy.poll(now)
+        if frame_set is not None:
+            assert None not in frame_set.images
+            stamps.append(round(frame_set.stamp_s, 3))
+    assert stamps == [round(10.0 + 0.1 * k, 3) for k in range(10) if k != 4]
+    assert policy.time_jumps == 0 and not any(state.stalled for state in policy.cameras(101.0))
