@@ -19,7 +19,7 @@ read. Exit status 0, or 1 when any line was malformed (not merely without a solu
 """
 import sys
 
-from accelcal_ros.cli_args import finite_float, float_in, nonnegative_int, positive_int
+from accelcal_ros.cli_args import finite_float, float_in, int_in, nonnegative_int, positive_int
 
 SOLVE_HELP = """\
 Solve P2P with known vertical (paper A eq. 8): one JSON problem per input line,
@@ -289,7 +289,8 @@ def _register_p2p_bag(subparsers):
                         "node's 0 0 0 1 0 0)")
     p.add_argument('--imu-to-camera', type=finite_float, nargs=9, metavar='R',
                    help='rotation IMU body -> camera optical frame, 9 row-major values')
-    p.add_argument('--threshold', type=int, help='emitter grey level (default: as the node)')
+    p.add_argument('--threshold', type=int_in(0, 254),
+                   help='emitter grey level (default: as the node)')
     add_stamp_argument(p)
     p.add_argument('-o', '--output', required=True, help='CSV of poses to write')
     p.set_defaults(handler=_p2p_bag_main)
