@@ -12,7 +12,7 @@ Shutdown: the runner installs its own SIGINT and SIGTERM handlers (rclpy's are n
 installed), which end the spin loop; the node's ``close()`` then stops its threads
 while the context is still valid (no ``RCLError`` from a publishing thread), and only
 then are the node and the context destroyed. Exit status 0. A second signal while
-closing stops at once.
+closing ends the process at once (status 128 + signal number, no clean-up).
 
 Errors a user can cause at start-up (bad parameter, missing device, unreadable file) are
 :class:`~accelcal_ros.errors.AccelcalError` (rclpy's parameter exceptions are turned
@@ -74,14 +74,14 @@ def make_executor(kind: str, threads: int = 2):
 
 
 class _StopFlag:
-    """Set by SIGINT/SIGTERM; a second signal raises KeyboardInterrupt (stop at once)."""
+    """Set by SIGINT/SIGTERM; a second signal ends the process at once (status 128 + signal)."""
 
     def __init__(self) -> None:
         self.requested = False
 
     def handler(self, signum, frame) -> None:
         if self.requested:
-            raise KeyboardInterrupt
+            os._exit(128 + signum)
         self.requested = True
 
 
