@@ -175,3 +175,23 @@ def test_accelcal_refuses_to_write_over_an_input(tmp_path, capsys, command):
     assert 'also an input' in err and len(err.strip().splitlines()) == 1
     for name, path in files.items():
         assert path.read_text() == f'{name} content\n'
+
+
+def test_a_writer_killed_before_the_rename_leaves_a_temp_file_the_next_write_removes(tmp_path):
+    """A writer that dies mid-write leaves .NAME.PID-N.accelcal-tmp; the next write removes it."""
+    import subprocess
+    import sys
+
+    from accelcal_ros.fileio import TEMP_SUFFIX
+
+    target = tmp_path / 'calib.yaml'
+    target.write_text('old\n')
+    code = ('import os, sys\nfrom accelcal_ros import fileio\n'
+            'os.replace = lambda *a: os._exit(9)  # killed between fsync and rename\n'
+            f'fileio.write_text_atomic({str(target)!r}, "new\\n")\n')
+    assert subprocess.run([sys.executable, '-c', code], timeout=60).returncode == 9
+    left = [p.name for p in tmp_path.iterdir() if p.name.endswith(TEMP_SUFFIX)]
+    assert len(left) == 1 and left[0].startswith('.calib.yaml.') and target.read_text() == 'old\n'
+    write_text_atomic(target, 'newer\n')
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['calib.yaml']
+    assert target.read_text() == 'newer\n'
