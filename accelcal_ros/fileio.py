@@ -10,7 +10,7 @@ readers) go through them.
 Writing: data goes to a temporary file ``.<name>.<pid>-<n>.accelcal-tmp`` in the target's
 directory, is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX).
 An existing file keeps its permission bits; a new one gets ``0666 & ~umask`` like any
-file the user creates. Temporary files that a killed writer left next to the target (their
+file the user creates; a symbolic link is written through (it stays a link). Temporary files that a killed writer left next to the target (their
 pid no longer runs) are removed first. Any failure (read-only place, ``/proc``, a
 directory as target, no room) is a :class:`~accelcal_ros.errors.FileWriteError` naming the
 path. With ``backup=True`` the previous file is kept as ``<name>.bak``.
@@ -328,6 +328,9 @@ def write_bytes_atomic(path, data, backup=False):
         _check_guard(path)
     if os.path.isdir(path):
         raise FileWriteError(path, 'is a directory; give a file name')
+    shown = path
+    if os.path.islink(path):  # write through the link: it keeps pointing at the new data
+        path = os.path.realpath(path)
     directory = os.path.dirname(os.path.abspath(path))
     tmp = None
     try:
@@ -351,7 +354,7 @@ def write_bytes_atomic(path, data, backup=False):
         reason = exc.strerror or str(exc)
         where = exc.filename if exc.filename and os.fspath(exc.filename) != path and \
             not str(exc.filename).endswith(TEMP_SUFFIX) else None
-        raise FileWriteError(path, f'cannot write: {reason}'
+        raise FileWriteError(shown, f'cannot write: {reason}'
                              + (f' ({where})' if where else '')) from None
     finally:
         if tmp is not None:

@@ -195,3 +195,13 @@ def test_a_writer_killed_before_the_rename_leaves_a_temp_file_the_next_write_rem
     write_text_atomic(target, 'newer\n')
     assert sorted(p.name for p in tmp_path.iterdir()) == ['calib.yaml']
     assert target.read_text() == 'newer\n'
+
+
+def test_a_symbolic_link_is_written_through(tmp_path):
+    """Writing to a link replaces the file it points at; the link stays a link."""
+    real = tmp_path / 'real.yaml'
+    real.write_text('old\n')
+    link = tmp_path / 'link.yaml'
+    link.symlink_to(real)
+    write_text_atomic(link, 'new\n')
+    assert link.is_symlink() and real.read_text() == 'new\n'
