@@ -10,10 +10,11 @@ readers) go through them.
 Writing: data goes to a temporary file ``.<name>.<pid>-<n>.accelcal-tmp`` in the target's
 directory, is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX).
 An existing file keeps its permission bits; a new one gets ``0666 & ~umask`` like any
-file the user creates; a symbolic link is written through (it stays a link). Temporary files that a killed writer left next to the target (their
-pid no longer runs) are removed first. Any failure (read-only place, ``/proc``, a
-directory as target, no room) is a :class:`~accelcal_ros.errors.FileWriteError` naming the
-path. With ``backup=True`` the previous file is kept as ``<name>.bak``.
+file the user creates; a symbolic link is written through (it stays a link). Temporary
+files that a killed writer left next to the target (their pid no longer runs) are removed
+first. Any failure (read-only place, ``/proc``, a directory as target, no room) is a
+:class:`~accelcal_ros.errors.FileWriteError` naming the path. With ``backup=True`` the
+previous file is kept as ``<name>.bak``.
 
 Inside :func:`guard_inputs` (the ``accelcal`` dispatcher wraps every command in it) every
 file read through this module and every path given to it counts as an input: writing to an
