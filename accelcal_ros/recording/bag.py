@@ -220,6 +220,16 @@ class BagReader:
             raise InputError(f'topic {topic.name} of {self.path} is empty (0 messages)')
         return topic.name
 
+    def deserialize(self, raw: bytes, msgtype: str):
+        """Deserialise one message of this bag (``pkg/Type`` or ``pkg/msg/Type``)."""
+        parts = msgtype.split('/')
+        full = msgtype if len(parts) == 3 else f'{parts[0]}/msg/{parts[-1]}'
+        try:
+            return self._reader.deserialize(raw, full)
+        except Exception as exc:
+            raise FileFormatError(self.path, f'cannot decode a {msgtype}: {_reason(exc)}') \
+                from None
+
     def messages(self, topics: Sequence[str], label: Optional[str] = None,
                  decode: Optional[Sequence[str]] = None) -> Iterator[BagMessage]:
         """

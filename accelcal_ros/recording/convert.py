@@ -15,7 +15,7 @@ classes as on rclpy's. Units stay ROS's (REP-103: m, m/s^2, rad/s, rad).
   (x = roll, y = pitch, rad);
 - sensor_msgs/CameraInfo: :func:`camera_info` (K, D, P, size, distortion model).
 """
-from typing import Dict, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 import numpy as np
@@ -83,3 +83,53 @@ def camera_info(msg) -> Dict[str, object]:
         raise InputError(f'CameraInfo has no valid K (focal lengths {k[0, 0]}, {k[1, 1]})')
     return {'K': k, 'D': d, 'P': p, 'width': int(msg.width), 'height': int(msg.height),
             'distortion_model': str(msg.distortion_model)}
+
+
+def imu_arrays_from_raw(raws: Sequence[bytes], ros1: bool) -> Optional[dict]:
+    """
+    Decode serialised sensor_msgs/Imu messages of one layout at once (vectorised).
+
+    ROS 2 CDR (little endian; 4-byte encapsulation, ``float64`` aligned to 8 from the
+    payload start) or ROS 1 (packed, ``seq`` first). Returns ``{'header_ns', 'frame_id',
+    'accel', 'gyro', 'gyro_provided'}`` (arrays per message), or None when the messages do
+    not share one length and frame_id or are big-endian: the caller then deserialises
+    them one by one.
+    """
+    n = len(raws)
+    if n == 0:
+        return None
+    size = len(raws[0])
+    if any(len(r) != size for r in raws):
+        return None
+    buf = np.frombuffer(b''.join(raws), dtype=np.uint8).reshape(n, size)
+
+    def column(offset: int, dtype: str) -> np.ndarray:
+        width = np.dtype(dtype).itemsize
+        return np.ascontiguousarray(buf[:, offset:offset + width]).view(dtype)[:, 0]
+
+    if ros1:
+        sec, nsec, base = column(4, '<u4'), column(8, '<u4'), 12
+        strlen = column(12, '<u4')
+        if np.any(strlen != strlen[0]):
+            return None
+        length = int(strlen[0])
+        frame_id = bytes(buf[0, 16:16 + length]).decode('utf-8', 'replace')
+        start = 16 + length
+    else:
+        if raws[0][1] != 1:   # CDR_LE only
+            return None
+        sec, nsec, base = column(4, '<i4'), column(8, '<u4'), 4
+        strlen = column(base + 8, '<u4')
+        if np.any(strlen != strlen[0]):
+            return None
+        length = int(strlen[0])
+        frame_id = bytes(buf[0, base + 12:base + 12 + max(length - 1, 0)]).decode(
+            'utf-8', 'replace')
+        start = base + ((12 + length + 7) // 8) * 8
+    if start + 37 * 8 > size:
+        return None
+    values = np.ascontiguousarray(buf[:, start:start + 37 * 8]).view('<f8').reshape(n, 37)
+    return {'header_ns': sec.astype(np.int64) * 1_000_000_000 + nsec.astype(np.int64),
+            'frame_id': frame_id, 'gyro': values[:, 13:16].astype(float),
+            'gyro_provided': bool(np.any(values[:, 16] != -1.0)),
+            'accel': values[:, 25:28].astype(float)}

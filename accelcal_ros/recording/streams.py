@@ -119,26 +119,60 @@ def _sorted_unique(topic, t, *arrays):
     return t, arrays, warnings
 
 
+IMU_CHUNK = 50_000
+"""Serialised Imu messages decoded at once (bounds the raw bytes held: about 16 MB)."""
+
+
 def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> ImuStream:
-    """Read a sensor_msgs/Imu topic (chosen as :meth:`BagReader.select_topic` does)."""
+    """
+    Read a sensor_msgs/Imu topic (chosen as :meth:`BagReader.select_topic` does).
+
+    Messages are decoded in chunks with :func:`~accelcal_ros.recording.convert.
+    imu_arrays_from_raw` (vectorised), one by one where a chunk's layout varies.
+    """
     name = bag.select_topic(topic, (convert.IMU,), option)
     header, receive, accel, gyro = [], [], [], []
     provided = False
     frame_id = ''
-    for message in bag.messages([name], f'reading {name}'):
-        a, w, p = convert.imu_values(message.msg)
-        accel.append(a)
-        gyro.append(w)
-        provided = provided or p
-        header.append(message.header_ns)
-        receive.append(message.receive_ns)
-        frame_id = frame_id or str(message.msg.header.frame_id)
+    raws, stamps = [], []
+
+    def flush():
+        nonlocal provided, frame_id
+        fast = convert.imu_arrays_from_raw(raws, bag.is_ros1)
+        if fast is None:
+            for raw in raws:
+                msg = bag.deserialize(raw, convert.IMU)
+                a, w, p = convert.imu_values(msg)
+                accel.append(a[None, :])
+                gyro.append(w[None, :])
+                provided = provided or p
+                header.append(np.array([int(msg.header.stamp.sec) * 1_000_000_000
+                                        + int(msg.header.stamp.nanosec)], dtype=np.int64))
+                frame_id = frame_id or str(msg.header.frame_id)
+        else:
+            accel.append(fast['accel'])
+            gyro.append(fast['gyro'])
+            header.append(fast['header_ns'])
+            provided = provided or fast['gyro_provided']
+            frame_id = frame_id or fast['frame_id']
+        receive.append(np.array(stamps, dtype=np.int64))
+        raws.clear()
+        stamps.clear()
+
+    for message in bag.messages([name], f'reading {name}', decode=()):
+        raws.append(message.raw)
+        stamps.append(message.receive_ns)
+        if len(raws) >= IMU_CHUNK:
+            flush()
+    if raws:
+        flush()
+    header, receive = np.concatenate(header), np.concatenate(receive)
     used_ns = used_times_ns(header, receive, bag.stamp)
     epoch_ns = int(used_ns.min())
     warnings = _check_ns(name, header, receive, bag.stamp, epoch_ns)
     t = (used_ns - epoch_ns) / 1e9
-    accel = np.array(accel).reshape(-1, 3)
-    gyro_arr = np.array(gyro).reshape(-1, 3) if provided else None
+    accel = np.concatenate(accel).reshape(-1, 3)
+    gyro_arr = np.concatenate(gyro).reshape(-1, 3) if provided else None
     bad = ~np.all(np.isfinite(accel), axis=1)
     if bad.all():
         raise InputError(f'{name}: every linear_acceleration is NaN or infinite')
