@@ -46,6 +46,7 @@ cannot measure range at all and a small elevation magnifies tilt errors roughly 
 ``1 / tan(elevation)``; :func:`elevation_sweep` shows it.
 """
 from dataclasses import asdict, dataclass
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
@@ -87,7 +88,8 @@ class Scenes:
     yaw: np.ndarray
 
 
-def random_scenes(count, rng, geometry=StudyGeometry(), range_m=1.0):
+def random_scenes(count: int, rng: np.random.Generator,
+                  geometry: 'StudyGeometry' = StudyGeometry(), range_m: float = 1.0) -> 'Scenes':
     """Draw ``count`` scenes of :class:`StudyGeometry` (object to camera poses, rays)."""
     g = geometry
     azimuth = rng.uniform(-np.pi, np.pi, count)
@@ -110,7 +112,8 @@ def random_scenes(count, rng, geometry=StudyGeometry(), range_m=1.0):
     return Scenes(rotations, translations, points, rays, roll, pitch, yaw)
 
 
-def measured_roll_pitch(roll, pitch, estimate, truth=None):
+def measured_roll_pitch(roll: np.ndarray, pitch: np.ndarray, estimate: Any,
+                        truth: Any = None) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return the roll/pitch (rad) an IMU calibrated with ``estimate`` reports at true roll/pitch.
 
@@ -132,11 +135,12 @@ def measured_roll_pitch(roll, pitch, estimate, truth=None):
 class TiltOffset:
     """A constant roll/pitch error (deg) in place of a calibration set (paper A's examples)."""
 
-    def __init__(self, roll_deg=0.0, pitch_deg=0.0):
+    def __init__(self, roll_deg: float = 0.0, pitch_deg: float = 0.0) -> None:
         self.roll_deg, self.pitch_deg = float(roll_deg), float(pitch_deg)
 
 
-def run_trials(scenes, estimate, geometry, rng):
+def run_trials(scenes: 'Scenes', estimate: Any, geometry: 'StudyGeometry',
+               rng: np.random.Generator) -> Dict[str, Any]:
     """
     Solve every scene with the vertical from ``estimate``; return the error statistics.
 
@@ -174,7 +178,7 @@ def run_trials(scenes, estimate, geometry, rng):
     yaw_err = np.degrees(np.abs(np.angle(np.exp(1j * (yaw_est - yaw_true)))))[ok]
     range_err = (100.0 * np.abs(range_est - range_true) / range_true)[ok]
 
-    def stats(values):
+    def stats(values: np.ndarray) -> Dict[str, float]:
         if values.size == 0:
             return {'rms': float('nan'), 'mean': float('nan'), 'median': float('nan'),
                     'p95': float('nan')}
@@ -187,14 +191,14 @@ def run_trials(scenes, estimate, geometry, rng):
             'yaw_deg': stats(yaw_err), 'range_pct': stats(range_err)}
 
 
-def paper_models():
+def paper_models() -> Dict[str, SensorModel]:
     """Return ``{label: SensorModel}`` for paper A's K = 500 (truth), 300 and 100 sets."""
     return {'K=500': paper_a_model(500),
             'K=300': SensorModel(np.array(PAPER_K300_SCALE), np.array(PAPER_K300_BIAS)),
             'K=100': SensorModel(np.array(PAPER_K100_SCALE), np.array(PAPER_K100_BIAS))}
 
 
-def package_models(count=100, seed=0):
+def package_models(count: int = 100, seed: int = 0) -> List[SensorModel]:
     """
     Return the package's own K = 12 calibrations (INTERFACES.md section 1).
 
@@ -207,7 +211,8 @@ def package_models(count=100, seed=0):
                               seed=seed, layout='recommended', model='full'))
 
 
-def run_study(trials=10000, seed=0, geometry=StudyGeometry(), own_models=None):
+def run_study(trials: int = 10000, seed: int = 0, geometry: 'StudyGeometry' = StudyGeometry(),
+              own_models: Optional[Sequence[SensorModel]] = None) -> Dict[str, Any]:
     """
     Run Table 2 for the paper's three sets and, if given, ``own_models`` (a list).
 
@@ -227,8 +232,9 @@ def run_study(trials=10000, seed=0, geometry=StudyGeometry(), own_models=None):
     return {'geometry': asdict(geometry), 'trials': trials, 'seed': seed, 'rows': rows}
 
 
-def elevation_sweep(elevations_deg=(5.0, 10.0, 20.0, 30.0, 45.0, 60.0), trials=2000, seed=0,
-                    geometry=StudyGeometry(), labels=('K=500', 'K=300')):
+def elevation_sweep(elevations_deg: Sequence[float] = (5.0, 10.0, 20.0, 30.0, 45.0, 60.0),
+                    trials: int = 2000, seed: int = 0, geometry: 'StudyGeometry' = StudyGeometry(),
+                    labels: Sequence[str] = ('K=500', 'K=300')) -> Dict[float, Dict[str, Any]]:
     """Return ``{elevation: {label: stats}}``: the geometry dependence of the errors."""
     out = {}
     models = paper_models()
@@ -241,7 +247,7 @@ def elevation_sweep(elevations_deg=(5.0, 10.0, 20.0, 30.0, 45.0, 60.0), trials=2
     return out
 
 
-def format_table(study, sweep=None):
+def format_table(study: Dict[str, Any], sweep: Optional[Dict[float, Any]] = None) -> str:
     """Return the study as printable text (Table 2 beside the paper, then the sweep)."""
     g = study['geometry']
     lines = [

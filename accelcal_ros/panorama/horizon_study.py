@@ -24,12 +24,13 @@ by the package (:func:`accelcal_ros.calibration.study.fitted_models`, 12 positio
 pitch`` errors, whose horizon deviations are computed with the closed form.
 """
 import math
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig
+from accelcal_ros.panorama.rig import Rig, ring_rig
 import numpy as np
 
 PAPER_PITCH_DEG = -15.0
@@ -40,15 +41,16 @@ PAPER_DEVIATION_PX = {-2.0: 36.0, 2.0: 28.0}
 """Paper A, Fig. 6 b/c: largest horizon deviation (px) for pitch errors -2 / +2 deg."""
 
 
-def study_rig(width=1280, height=960):
+def study_rig(width: int = 1280, height: int = 960) -> Rig:
     """Return the study's rig: 5 cameras, 60 deg horizontal FOV, 36 deg apart, mild lens."""
     focal = 1100.0 * width / 1280.0
     return ring_rig(5, width, height, focal, 36.0, distortion=(-0.05, 0.01, 0.0, 0.0, 0.0),
                     mount_error_deg=0.3, seed=4)
 
 
-def analytic_horizon_rows(geometry, true_roll_pitch, used_roll_pitch,
-                          imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def analytic_horizon_rows(geometry: PanoramaGeometry, true_roll_pitch: Tuple[float, float],
+                          used_roll_pitch: Tuple[float, float],
+                          imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """
     Return the row of the true horizon in every column of a panorama built wrongly.
 
@@ -65,7 +67,8 @@ def analytic_horizon_rows(geometry, true_roll_pitch, used_roll_pitch,
     return geometry.row_from_elevation(elevation)
 
 
-def tilt_errors_after_calibration(models, truth=None, roll=0.0, pitch=REFERENCE_PITCH_RAD):
+def tilt_errors_after_calibration(models: Sequence[Any], truth: Any = None, roll: float = 0.0,
+                                  pitch: float = REFERENCE_PITCH_RAD) -> np.ndarray:
     """Return ``(roll_error, pitch_error)`` arrays (rad) of each fitted model at an attitude."""
     from accelcal_ros.sensor.model import paper_a_model
 
@@ -79,8 +82,9 @@ def tilt_errors_after_calibration(models, truth=None, roll=0.0, pitch=REFERENCE_
     return np.array(errors).reshape(-1, 2).T
 
 
-def run(width=3600, height=2400, count=100, quick=False, out_dir=None, say=print,
-        models=None):
+def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = False,
+        out_dir: Optional[str] = None, say: Callable[[str], Any] = print,
+        models: Optional[Sequence[Any]] = None) -> Dict[str, Any]:
     """
     Run the study; print a readable table with ``say`` and return the figures as a dict.
 

@@ -11,7 +11,8 @@ throughput rises (``benchmarks/bench_panorama.py`` prints both). Frames are rend
 delivered in the order they were submitted. ``stages=1`` is the plain sequence (half the
 memory: at 3600x2400 each stage holds about 80-100 MB).
 """
-from concurrent.futures import ThreadPoolExecutor, wait
+from concurrent.futures import Future, ThreadPoolExecutor, wait
+from typing import Any, Callable, Sequence
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.stitch import Stitcher
@@ -31,7 +32,8 @@ class PipelinedStitcher:
     ``options`` are :class:`~.stitch.Stitcher`'s keyword arguments.
     """
 
-    def __init__(self, rig, geometry, *args, stages=2, **options):
+    def __init__(self, rig: Any, geometry: Any, *args: Any, stages: int = 2,
+                 **options: Any) -> None:
         if stages not in (1, 2):
             raise InputError(f'stages must be 1 or 2, got {stages!r}')
         self.stitchers = [Stitcher(rig, geometry, *args, **options) for _ in range(stages)]
@@ -42,21 +44,22 @@ class PipelinedStitcher:
         """Duration of the latest rebuild (seconds; NaN before the first)."""
 
     @property
-    def rebuild_threshold_deg(self):
+    def rebuild_threshold_deg(self) -> float:
         """Tilt change (degrees) that triggers a lookup rebuild (every stage alike)."""
         return self.stitchers[0].rebuild_threshold_deg
 
     @rebuild_threshold_deg.setter
-    def rebuild_threshold_deg(self, value):
+    def rebuild_threshold_deg(self, value: float) -> None:
         for stitcher in self.stitchers:
             stitcher.rebuild_threshold_deg = float(value)
 
     @property
-    def rebuild_count(self):
+    def rebuild_count(self) -> int:
         """Lookup rebuilds so far, all stages together."""
         return sum(s.rebuild_count for s in self.stitchers)
 
-    def submit(self, roll, pitch, images, consume):
+    def submit(self, roll: float, pitch: float, images: Sequence[Any],
+               consume: Callable[[Any], Any]) -> Future:
         """
         Stitch one frame set (radians; images in rig order, None: camera blacked out).
 
@@ -81,10 +84,10 @@ class PipelinedStitcher:
     def _render(stitcher, consume):
         return consume(stitcher.render())
 
-    def drain(self):
+    def drain(self) -> None:
         """Wait until every submitted frame has been rendered and consumed."""
         wait([f for f in self._pending if f is not None])
 
-    def close(self):
+    def close(self) -> None:
         """Finish the submitted frames and stop the render thread."""
         self._worker.shutdown(wait=True)

@@ -14,6 +14,8 @@ every 30 deg of azimuth, the ground a multi-scale texture and a grid of lines.
 bilinearly; :func:`render_panorama_truth` samples the same texture straight into the
 panorama geometry, i.e. what a perfect stitcher with the true attitude would produce.
 """
+from typing import Any, List, Optional
+
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rotation_from_rpy_radians
 from accelcal_ros.panorama.rig_projection import normalized_from_pixels, reference_heading_rad
 import numpy as np
@@ -31,7 +33,8 @@ def _smooth_noise(rng, shape, cells, cv2):
     return np.clip(big / 2.5, -1.0, 1.0)
 
 
-def make_scene(width=3600, height=1800, seed=0, band_deg=6.0):
+def make_scene(width: int = 3600, height: int = 1800, seed: int = 0,
+               band_deg: float = 6.0) -> np.ndarray:
     """
     Return the equirectangular test scene, uint8 BGR ``(height, width, 3)``.
 
@@ -66,7 +69,7 @@ def make_scene(width=3600, height=1800, seed=0, band_deg=6.0):
     return np.clip(np.rint(scene), 0, 255).astype(np.uint8)
 
 
-def sample_scene(scene, directions_level):
+def sample_scene(scene: np.ndarray, directions_level: np.ndarray) -> np.ndarray:
     """Colours of the scene seen along level-frame unit vectors ``(..., 3)`` (bilinear)."""
     import cv2
 
@@ -79,13 +82,15 @@ def sample_scene(scene, directions_level):
     return cv2.remap(scene, col, row, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
 
 
-def camera_to_level(rig, index, roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def camera_to_level(rig: Any, index: int, roll: float, pitch: float,
+                    imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """Rotation taking camera ``index``'s optical-frame vectors into the level frame."""
     c = np.asarray(imu_to_camera, dtype=float).reshape(3, 3)
     return rotation_from_rpy_radians(roll, pitch) @ c.T @ rig.cameras[index].R.T
 
 
-def render_camera_views(scene, rig, roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def render_camera_views(scene: np.ndarray, rig: Any, roll: float, pitch: float,
+                        imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA) -> List[np.ndarray]:
     """
     Render every camera's image of ``scene`` for the body attitude ``(roll, pitch)`` (rad).
 
@@ -102,19 +107,21 @@ def render_camera_views(scene, rig, roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CA
     return images
 
 
-def panorama_frame_to_level(imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def panorama_frame_to_level(imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """Rotation taking panorama-frame rays into the level frame: ``R_z(psi_0) C_0^T``."""
     return rot_z(reference_heading_rad(imu_to_camera)) @ DEFAULT_IMU_TO_CAMERA.T
 
 
-def render_panorama_truth(scene, geometry, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def render_panorama_truth(scene: np.ndarray, geometry: Any,
+                          imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """Return the scene sampled straight into the panorama geometry (the ideal result)."""
     rays = geometry.rays(np.arange(geometry.width)[None, :],
                          np.arange(geometry.height)[:, None])
     return sample_scene(scene, rays @ panorama_frame_to_level(imu_to_camera).T)
 
 
-def horizon_rows(panorama, geometry, search_deg=3.5, expected_row=None):
+def horizon_rows(panorama: np.ndarray, geometry: Any, search_deg: float = 3.5,
+                 expected_row: Optional[float] = None) -> np.ndarray:
     """
     Sub-pixel row of the sky/ground edge in each column (NaN where not seen).
 
@@ -147,7 +154,7 @@ def horizon_rows(panorama, geometry, search_deg=3.5, expected_row=None):
     return np.where(valid, rows, np.nan)
 
 
-def psnr(a, b, mask=None):
+def psnr(a: np.ndarray, b: np.ndarray, mask: Optional[np.ndarray] = None) -> float:
     """Peak signal-to-noise ratio (dB, 8-bit) of two images over ``mask`` (all if None)."""
     diff = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     if diff.ndim == 3:
