@@ -20,11 +20,9 @@ from accelcal_ros.calibration.session import Calibrator
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
-from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from accelcal_ros.sensor.calibration_file import save_calibration
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-import numpy as np
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -46,7 +44,8 @@ class CalibrationNode(Node):
         self.saved_path = ''
         self._apply_clients = {}
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, qos_profile_sensor_data)
-        status_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+        # A late joiner (ros2 topic echo --once) gets the latest status only.
+        status_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'calibration/status',
                                                 status_qos)
@@ -64,8 +63,12 @@ class CalibrationNode(Node):
         if not self.calibrator.active:
             return
         a = msg.linear_acceleration
-        raw_g = np.array([a.x, a.y, a.z]) / STANDARD_GRAVITY_M_S2
-        events = self.calibrator.add_samples(stamp_to_seconds(msg.header.stamp), raw_g)
+        stamp = msg.header.stamp
+        g = STANDARD_GRAVITY_M_S2
+        events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
+                                            (a.x / g, a.y / g, a.z / g))
+        if not events:
+            return
         captured = False
         for event in events:
             self.last_event = event

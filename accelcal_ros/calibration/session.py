@@ -16,7 +16,7 @@ Order of calls: ``start`` -> samples / ``capture_now`` -> ``finish`` or ``cancel
 out of order raise :class:`~accelcal_ros.errors.CalibrationError` saying what to call.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List, Optional, Sequence
 
 from accelcal_ros.calibration.coverage import coverage_fraction, suggest_directions
 from accelcal_ros.calibration.ellipsoid_fit import check_model, fit_ellipsoid, parameter_count
@@ -143,20 +143,28 @@ class Calibrator:
             return []
         t = np.atleast_1d(np.asarray(t, dtype=float)).tolist()
         accel_g = np.asarray(accel_g, dtype=float).reshape(-1, 3).tolist()
-        detector = self.detector
-        add = detector.add
-        auto = self.config.auto_capture
-        min_still_s = self.config.min_still_s
         events = []
-        before = detector.rejected
         for ti, ai in zip(t, accel_g):
-            add(ti, ai)
-            if detector.ended:
-                events += self._handle_ended()
-            seg = detector.segment
-            if seg is not None and auto and seg.duration_s >= min_still_s:
-                events += self._auto_capture(seg)
-        if detector.rejected > before and before == 0:
+            events += self.add_sample(ti, ai)
+        return events
+
+    def add_sample(self, t_s: float, accel_g: Sequence[float]) -> List[str]:
+        """
+        Feed one sample (``t_s`` s, ``accel_g`` [3] g, plain floats); returns event messages.
+
+        The per-sample path of the node: no arrays are built unless something happens.
+        """
+        if not self.active:
+            return []
+        detector = self.detector
+        before = detector.rejected
+        detector.add(t_s, accel_g)
+        events = self._handle_ended() if detector.ended else []
+        seg = detector.segment
+        if seg is not None and self.config.auto_capture \
+                and seg.duration_s >= self.config.min_still_s:
+            events += self._auto_capture(seg)
+        if before == 0 and detector.rejected:
             events.append('rejected samples that are NaN or saturated (beyond '
                           f'{self.config.saturation_g:g} g); they are not used')
         return events
