@@ -42,14 +42,15 @@ EQUATION = (
 
 
 PLAUSIBLE_RANGES = {
-    'scale': (0.2, 5.0),
+    'scale': (0.1, 10.0),
     'bias': (-2.0, 2.0),
-    'misalignment': (-0.35, 0.35),
+    'misalignment': (-0.2, 0.2),
     'scale_std': (0.0, 10.0),
     'bias_std': (0.0, 10.0),
     'misalignment_std': (0.0, 10.0),
 }
-"""Closed range of every value of each vector field (scale 1, g, rad as the field's unit).
+"""Closed range of every value of each vector field (scale 1, g, rad as the field's unit);
+the same as the ``attitude`` node's ``calibration.*`` parameter ranges.
 
 A field calibration of an accelerometer has scales near 1 (the ADXL345: 0.8-1.2), biases
 below 0.2 g and misalignments below a degree; the ranges are wide around that and only
