@@ -66,21 +66,40 @@ class Board:
         return np.array([(self.cols - 1) / 2.0, (self.rows - 1) / 2.0, 0.0]) * self.square_m
 
     def reflectance(self, x_m: np.ndarray, y_m: np.ndarray, margin_squares: float = 1.0,
-                    background: float = np.nan) -> np.ndarray:
+                    background: float = np.nan, width_x_m: np.ndarray = 0.0,
+                    width_y_m: np.ndarray = 0.0) -> np.ndarray:
         """
         Brightness in [0, 1] at board points ``(x_m, y_m)``: 0 black, 1 white.
 
         The squares, then a white margin of ``margin_squares``; outside it ``background``.
+        With footprint widths ``width_x_m``, ``width_y_m`` (> 0) the squares are box-filtered
+        over them (anti-aliasing): each axis' square wave ``q = +-1`` becomes
+        ``q min(1, 2 |d| / width)`` with ``d`` the distance to the nearest edge, and the
+        checker is ``(1 - q_x q_y) / 2`` (exact for an axis-aligned footprint).
         """
         s = self.square_m
-        i = np.floor(x_m / s).astype(np.int64) + 1
-        j = np.floor(y_m / s).astype(np.int64) + 1
-        inside = (i >= 0) & (i <= self.cols) & (j >= 0) & (j <= self.rows)
-        value = np.where((i + j) % 2 == 0, 0.0, 1.0)
+        gx = np.asarray(x_m) / s + 1.0
+        gy = np.asarray(y_m) / s + 1.0
+        wx = np.maximum(np.asarray(width_x_m) / s, 1e-12)
+        wy = np.maximum(np.asarray(width_y_m) / s, 1e-12)
+        qx = self._smoothed_wave(gx, wx, self.cols)
+        qy = self._smoothed_wave(gy, wy, self.rows)
+        # fraction of the footprint on the squares (the rest is the white margin)
+        cover = (np.clip(0.5 + np.minimum(gx, self.cols + 1 - gx) / wx, 0.0, 1.0)
+                 * np.clip(0.5 + np.minimum(gy, self.rows + 1 - gy) / wy, 0.0, 1.0))
+        value = cover * (0.5 - 0.5 * qx * qy) + (1.0 - cover)
         m = margin_squares * s
         on_paper = ((x_m >= -s - m) & (x_m < self.cols * s + m)
                     & (y_m >= -s - m) & (y_m < self.rows * s + m))
-        return np.where(inside, value, np.where(on_paper, 1.0, background))
+        return np.where(on_paper, value, background)
+
+    @staticmethod
+    def _smoothed_wave(g: np.ndarray, width: np.ndarray, count: int) -> np.ndarray:
+        # +1 on even squares, -1 on odd ones, box-filtered across the inner edges 1..count
+        square = np.floor(np.clip(g, 0.0, count + 0.5))
+        edge = np.clip(np.rint(g), 1, count)
+        return (np.where(square % 2 == 0, 1.0, -1.0)
+                * np.minimum(1.0, 2.0 * np.abs(g - edge) / width))
 
 
 def parse_board_size(text: str) -> tuple:

@@ -11,8 +11,9 @@ frame (:mod:`.board`) has z into the paper, i.e. down, tilted by ``tilt_deg`` fr
 
 Images are rendered by ray casting through the OpenCV distortion model: every sub-pixel
 sample is unprojected (``cv2.undistortPointsIter``, checked by reprojection), its ray
-intersected with the board plane and given the square's brightness; ``supersample^2``
-samples per pixel are averaged (box anti-aliasing), so corners are sub-pixel exact.
+intersected with the board plane and given the square's brightness box-filtered over
+the sample's footprint on the board (:meth:`.Board.reflectance`); ``supersample^2``
+samples per pixel are averaged, so corners are sub-pixel exact.
 The accelerometer reads the specific force ``f = R_wi^T [0, 0, g]`` (REP-145) plus
 white noise.
 """
@@ -90,12 +91,13 @@ class PoseTruth:
         return self.R_wi[2].copy()
 
 
-def default_truth(tilt_deg: float = 0.4, seed: int = 0, width: int = 640, height: int = 480,
-                  step_deg: float = 45.0, board: Optional[Board] = None) -> RigTruth:
+def default_truth(tilt_deg: float = 0.4, seed: int = 0, width: int = 800, height: int = 600,
+                  step_deg: float = 45.0, board: Optional[Board] = None,
+                  focal_px: float = 425.0) -> RigTruth:
     """
     Return a 3-camera ring: camera 0 ahead, camera 1 ``step_deg`` right, camera 2 left.
 
-    Each camera has its own focal length (about 410 px, HFOV about 76 deg at 640 px),
+    Each camera has its own focal length (about ``focal_px``: HFOV 87 deg at 800 px),
     principal point and barrel distortion; the non-reference cameras carry ~1 deg mount
     errors and ``imu_to_camera`` differs from the nominal one by a few degrees.
     """
@@ -104,7 +106,7 @@ def default_truth(tilt_deg: float = 0.4, seed: int = 0, width: int = 640, height
     azimuths = [0.0, step_deg, -step_deg]
     ks, ds, rs, centres = [], [], [], []
     for i, az in enumerate(azimuths):
-        f = 410.0 + rng.uniform(-12.0, 12.0)
+        f = focal_px + rng.uniform(-10.0, 10.0)
         k = np.array([[f, 0.0, (width - 1) / 2.0 + rng.uniform(-6, 6)],
                       [0.0, f * (1.0 + rng.uniform(-0.003, 0.003)),
                        (height - 1) / 2.0 + rng.uniform(-6, 6)],
@@ -123,7 +125,7 @@ def default_truth(tilt_deg: float = 0.4, seed: int = 0, width: int = 640, height
     mount = rot_z(np.radians(2.0)) @ rot_y(np.radians(-1.5)) @ rot_x(np.radians(1.2))
     imu_to_camera = DEFAULT_IMU_TO_CAMERA @ mount
     return RigTruth(names, [(width, height)] * 3, ks, ds, rs, centres, imu_to_camera,
-                    board or Board(9, 6, 0.03), tilt_deg)
+                    board or Board(11, 8, 0.025), tilt_deg)
 
 
 def board_in_camera(truth: RigTruth, pose: PoseTruth, index: int) -> Tuple[np.ndarray,
@@ -202,7 +204,7 @@ def plan_poses(truth: RigTruth, count: int = 30, seed: int = 1,
     Draw ``count`` still poses, each showing the whole board to a target camera or pair.
 
     Targets cycle through single cameras and neighbouring pairs (``targets`` overrides).
-    A pose looks down at the board at 35-65 deg below the horizon, rolled up to +-20 deg
+    A pose looks down at the board at 35-65 deg below the horizon, rolled up to +-55 deg
     about the line of sight, at a random heading within ``heading_span_deg`` (0: the rig
     never turns about the vertical).
     """
@@ -217,13 +219,13 @@ def plan_poses(truth: RigTruth, count: int = 30, seed: int = 1,
         base_az = float(np.arctan2(np.mean(np.sin(azs)), np.mean(np.cos(azs))))
         single = len(target) == 1
         for _ in range(500):
-            az = base_az + np.radians(rng.uniform(-22, 22) if single else rng.uniform(-3, 3))
-            up = np.radians(rng.uniform(-18, 18) if single else rng.uniform(-5, 5))
+            az = base_az + np.radians(rng.uniform(-22, 22) if single else rng.uniform(-4, 4))
+            up = np.radians(rng.uniform(-18, 18) if single else rng.uniform(-8, 8))
             el = np.radians(rng.uniform(35.0, 65.0))
-            roll = np.radians(rng.uniform(-20.0, 20.0))
+            roll = np.radians(rng.uniform(-55.0, 55.0))
             heading = np.radians(rng.uniform(-0.5, 0.5) * heading_span_deg)
             r_wi = rot_z(heading) @ rot_y(el) @ rot_x(roll) @ rot_y(up) @ rot_z(-az)
-            dist = rng.uniform(0.3, 0.55) if single else rng.uniform(0.75, 0.9)
+            dist = rng.uniform(0.28, 0.5) if single else rng.uniform(0.5, 0.7)
             d_body = np.array([np.cos(az) * np.cos(up), np.sin(az) * np.cos(up), np.sin(up)])
             centre = np.mean([truth.centres_m[i] for i in target], axis=0)
             shift = rng.uniform(-0.03, 0.03, 3) * (1.0 if single else 0.3)
@@ -239,10 +241,18 @@ def plan_poses(truth: RigTruth, count: int = 30, seed: int = 1,
     return poses
 
 
+def _footprint(coord: np.ndarray) -> np.ndarray:
+    # Extent of one sample's square footprint along a board coordinate (m), flattened.
+    if min(coord.shape) < 2:
+        return np.zeros(coord.size)
+    d_row, d_col = np.gradient(coord)
+    return np.nan_to_num(np.abs(d_row) + np.abs(d_col)).ravel()
+
+
 class Renderer:
     """Ray-casting renderer with the per-camera rays cached (``supersample^2`` per pixel)."""
 
-    def __init__(self, truth: RigTruth, supersample: int = 3) -> None:
+    def __init__(self, truth: RigTruth, supersample: int = 1) -> None:
         """Unproject every sub-pixel sample of every camera once."""
         self.truth = truth
         self.supersample = int(supersample)
@@ -319,7 +329,10 @@ class Renderer:
                 lam = -origin[2] / d[:, 2]
                 x = origin[0] + lam * d[:, 0]
                 y = origin[1] + lam * d[:, 1]
-                level = truth.board.reflectance(x, y)
+                shape = ((v1 - v0) * s, (u1 - u0) * s)
+                width_x = _footprint(x.reshape(shape))
+                width_y = _footprint(y.reshape(shape))
+                level = truth.board.reflectance(x, y, width_x_m=width_x, width_y_m=width_y)
                 level = np.where((lam > 0) & np.isfinite(level), level, np.nan)
             grey = np.where(np.isnan(level), BACKGROUND_LEVEL,
                             BLACK_LEVEL + (WHITE_LEVEL - BLACK_LEVEL) * np.nan_to_num(level))
