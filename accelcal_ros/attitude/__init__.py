@@ -1,1 +1,1 @@
-"""Attitude: calibrated roll and pitch from the accelerometer (tilt estimator and node)."""
+"""Attitude: the node that publishes calibrated roll and pitch (math in sensor.tilt)."""

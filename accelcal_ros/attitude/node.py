@@ -129,8 +129,12 @@ class AttitudeNode(Node):
                 except AccelcalError as exc:
                     self.get_logger().error(f'{exc}; keeping the last good calibration')
                     raise InputError(f'{exc}; the last good calibration is kept') from None
-            else:
+            else:   # empty: the calibration.* values (also how a rejected request undoes)
                 self._waiting_for_file = ''
+                merged = dict(self.params.values)
+                merged.update(self._pending)
+                self.estimator.set_calibration(*self._model_from_values(merged))
+                self._calibration_source = 'calibration.* parameters'
         elif name.startswith('calibration.'):
             merged = dict(self.params.values)
             merged.update(self._pending)

@@ -97,6 +97,15 @@ def test_attitude_node_calibration_files_and_bad_input(graph, tmp_path):
     msg = _latest_for(attitude, 101)
     assert msg.vector.y == pytest.approx(pitch, abs=1e-6)
 
+    # An empty calibration_file means the calibration.* values (here: none).
+    result = graph.set_parameters('attitude', {'calibration_file': ''})
+    assert result[0].successful, result[0].reason
+    _publish(graph, pub, raw, 107)
+    msg = _latest_for(attitude, 107)
+    assert abs(msg.vector.y - pitch) > math.radians(1.0)
+    result = graph.set_parameters('attitude', {'calibration_file': str(good)})
+    assert result[0].successful, result[0].reason
+
     # Impossible samples are skipped (no output, node alive, counted in /diagnostics,
     # logged once in 10 s); pitch +-90 gives no NaN.
     from diagnostic_msgs.msg import DiagnosticArray
