@@ -19,7 +19,7 @@ import importlib
 import os
 import sys
 
-from accelcal_ros.errors import AccelcalError
+from accelcal_ros.errors import AccelcalError, InputError
 
 FEATURE_CLI_MODULES = (
     'accelcal_ros.driver.cli',
@@ -101,8 +101,12 @@ def run_command(args):
     from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
 
     inputs = input_paths(args)
-    for output in output_paths(args):
+    outputs = output_paths(args)
+    for k, output in enumerate(outputs):
         refuse_overwriting_inputs(output, inputs)
+        if os.path.realpath(output) in (os.path.realpath(o) for o in outputs[:k]):
+            raise InputError(f'{output} is given for two outputs; the second would overwrite '
+                             'the first: give each output its own path')
     with guard_inputs(inputs):
         return int(args.handler(args) or 0)
 

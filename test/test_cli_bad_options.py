@@ -175,3 +175,13 @@ def test_empty_scan_and_malformed_p2p_mount_are_clear_errors(tmp_path, capsys, m
     out = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert len(out) == 3 and 'imu_to_camera' in out[0]['error']
     assert 'imu_to_camera' in out[1]['error'] and out[2]['solutions']
+
+
+def test_two_outputs_with_one_path_are_refused(tmp_path, capsys):
+    """`calibrate -o c.yaml --plot c.yaml` would overwrite its own calibration: refused."""
+    rec = tmp_path / 'rec.csv'
+    rec.write_text('t,ax,ay,az\n0,0,0,9.8\n')
+    out = tmp_path / 'c.yaml'
+    assert main(['calibrate', str(rec), '-o', str(out), '--plot', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert 'two outputs' in err and len(err.strip().splitlines()) == 1 and not out.exists()
