@@ -120,7 +120,31 @@ def load_yaml_mapping(path, what='file'):
     if not isinstance(data, dict):
         raise FileFormatError(path, f'{what} must be a YAML mapping, got '
                               f'{type(data).__name__} (empty or truncated file?)')
+    if _expanded_size_exceeds(data, MAX_YAML_NODES):
+        raise FileFormatError(path, f'{what} expands to more than {MAX_YAML_NODES} values '
+                              '(nested aliases?); not a file this package writes')
     return data
+
+
+#: most values (after expanding YAML aliases) a file may hold: a guard against alias bombs
+MAX_YAML_NODES = 1_000_000
+
+
+def _expanded_size_exceeds(data, limit):
+    """Whether ``data`` holds more than ``limit`` values counting shared ones each time."""
+    count = 0
+    stack = [data]
+    while stack:
+        item = stack.pop()
+        count += 1
+        if count > limit:
+            return True
+        if isinstance(item, dict):
+            stack.extend(item.keys())
+            stack.extend(item.values())
+        elif isinstance(item, (list, tuple)):
+            stack.extend(item)
+    return False
 
 
 def dump_yaml(data):

@@ -205,3 +205,18 @@ def test_a_symbolic_link_is_written_through(tmp_path):
     link.symlink_to(real)
     write_text_atomic(link, 'new\n')
     assert link.is_symlink() and real.read_text() == 'new\n'
+
+
+def test_yaml_alias_bomb_and_deep_nesting_are_refused(tmp_path):
+    """Nested aliases (billions of values) and 50,000 nested lists: FileFormatError, fast."""
+    lines = ['a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9]']
+    for k in range(1, 10):
+        lines.append(f'a{k}: &a{k} [' + ', '.join([f'*a{k - 1}'] * 9) + ']')
+    bomb = tmp_path / 'bomb.yaml'
+    bomb.write_text('\n'.join(lines) + '\nscale: *a9\n')
+    with pytest.raises(FileFormatError, match='expands to more than'):
+        load_yaml_mapping(bomb)
+    deep = tmp_path / 'deep.yaml'
+    deep.write_text('a: ' + '[' * 50000 + ']' * 50000 + '\n')
+    with pytest.raises(FileFormatError, match='not valid YAML'):
+        load_yaml_mapping(deep)
