@@ -7,15 +7,19 @@ gets a valid file written by the package's own writer (checked to load), then
 ``CASES`` mutations of it drawn with a fixed seed: bytes flipped, inserted or deleted,
 truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN / infinity / text /
 nothing, lines deleted, duplicated or swapped, header counts changed, an empty file. Any
-other exception (or a hang) fails the test, which prints how to reproduce each case.
+other exception, or a case running past ``CASE_LIMIT_S`` (a hang), fails the test, which
+prints how to reproduce each case.
 
 ``ACCELCAL_FUZZ_CASES=N`` runs N cases per reader (default 150) to hunt further; running
 this file as a script prints the time per reader.
 """
+import contextlib
 import importlib
 import os
 import random
 import re
+import signal
+import threading
 import time
 import warnings
 
@@ -25,6 +29,7 @@ import pytest
 
 CASES = int(os.environ.get('ACCELCAL_FUZZ_CASES', '150'))
 SEED = 20261123
+CASE_LIMIT_S = 20.0  # a reader that takes longer on a small file hangs
 _NUMBER = re.compile(rb'-?\d+(\.\d+)?(e-?\d+)?')
 _REPLACEMENTS = [b'1e999', b'-1e999', b'1e308', b'-1e308', b'1e-320', b'99999999999999999999',
                  b'-1', b'0', b'nan', b'NaN', b'inf', b'-inf', b'.nan', b'.inf', b'abc', b'',
@@ -277,6 +282,30 @@ def mutate(data, rng):
     return data + bytes(rng.randrange(256) for _ in range(20)), 'garbage appended'
 
 
+class _Hang(Exception):
+    """A case ran past CASE_LIMIT_S (reported as a failure)."""
+
+
+@contextlib.contextmanager
+def _time_limit(seconds):
+    """Raise :class:`_Hang` after ``seconds`` (main thread on POSIX; else no limit)."""
+    if not hasattr(signal, 'setitimer') or threading.current_thread() is not \
+            threading.main_thread():
+        yield
+        return
+
+    def expired(signum, frame):
+        raise _Hang(f'no answer within {seconds} s')
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
 def run_reader(name, folder, cases=CASES):
     """Fuzz one reader; return ``(failures, seconds)`` (failures: reproducer lines)."""
     filename, write, read = READERS[name]
@@ -293,7 +322,7 @@ def run_reader(name, folder, cases=CASES):
         with open(path, 'wb') as handle:
             handle.write(damaged)
         try:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), _time_limit(CASE_LIMIT_S):
                 warnings.simplefilter('ignore', RuntimeWarning)  # e.g. NaN cast to int
                 read(path)
         except AccelcalError:
