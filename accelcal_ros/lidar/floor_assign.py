@@ -24,9 +24,9 @@ about as many positions, as tightly, as the best and constrain all three angles.
   at every position; an assignment whose "floor" distances spread by more than
   ``height_tolerance_m`` (and 3 times the tightest candidate's spread) is ruled out;
 - **ceiling smaller**: a ceiling is usually cropped or seen with fewer points than the
-  floor; an assignment whose "ceiling" (the plane facing its floor) holds ``size_ratio``
-  times more points than its "floor" (median over at least 3 positions) is ruled out while
-  another candidate is not.
+  floor. A position where an assignment's "ceiling" (the plane facing its floor) holds
+  ``size_ratio`` times more points than its "floor" counts against it; an assignment with
+  at least 2 such positions more than the best one is ruled out.
 
 When more than one candidate is left, :class:`AmbiguousFloorError` lists them (roll, pitch,
 yaw in degrees) and says which prior decides.
@@ -74,7 +74,7 @@ class FloorCandidate:
     choice: np.ndarray
     errors_deg: np.ndarray
     heights_m: np.ndarray
-    size_ratio: Optional[float] = None
+    smaller_floor_at: List[int] = field(default_factory=list)
     ruled_out: str = ''
     positions: List[int] = field(default_factory=list)
 
@@ -193,18 +193,19 @@ def floor_candidates(planes: Sequence[PlaneSet], gravity, tolerance_deg: float =
         raise CalibrationError('no plane found at any position')
     tol = np.radians(tolerance_deg)
     found: List[FloorCandidate] = []
-    seen: List[np.ndarray] = []
+    seen = np.zeros((0, 3, 3))
+    # rotations closer than 2 tolerances are one: trace(R1 R2^T) > 1 + 2 cos(2 tol)
+    same = 1.0 + 2.0 * np.cos(np.radians(2 * tolerance_deg))
     for _, r in _hypotheses(planes, f, tol, max_pairs, seed):
         if len(found) >= max_candidates:
             break
-        if any(rotation_angle_deg(r, s) < 2 * tolerance_deg for s in seen):
+        if np.any(np.einsum('kij,ij->k', seen, r) > same):
             continue
-        seen.append(r)
+        seen = np.concatenate([seen, r[None]])
         cand = _refine(r, planes, f, tolerance_deg)
-        if cand is None or any(rotation_angle_deg(cand.rotation, c.rotation)
-                               < 2 * tolerance_deg for c in found):
+        if cand is None or any(np.sum(cand.rotation * c.rotation) > same for c in found):
             continue
-        seen.append(cand.rotation)
+        seen = np.concatenate([seen, cand.rotation[None]])
         found.append(cand)
     if not found:
         raise CalibrationError('no pair of planes is consistent with the gravity directions')
@@ -218,17 +219,16 @@ def floor_candidates(planes: Sequence[PlaneSet], gravity, tolerance_deg: float =
     return fits
 
 
-def _size_ratio(cand, planes, f, tol_deg):
-    """Median of inliers(floor) / inliers(plane facing it) over positions seeing both."""
-    ratios = []
+def _smaller_floor_at(cand, planes, f, tol_deg, size_ratio):
+    """Return the positions where the plane facing the floor holds ``size_ratio`` x its points."""
+    out = []
     for i in cand.positions:
         ps = planes[i]
         up = np.repeat(f[i:i + 1], len(ps.normals), 0)
-        err = pair_errors_deg(cand.rotation, -ps.normals, up)
-        facing = np.flatnonzero(err <= tol_deg)
-        if facing.size:
-            ratios.append(ps.inliers[cand.choice[i]] / ps.inliers[facing].max())
-    return float(np.median(ratios)) if len(ratios) >= 3 else None
+        facing = np.flatnonzero(pair_errors_deg(cand.rotation, -ps.normals, up) <= tol_deg)
+        if facing.size and ps.inliers[facing].max() >= size_ratio * ps.inliers[cand.choice[i]]:
+            out.append(int(i))
+    return out
 
 
 def select_floor(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0,
@@ -254,12 +254,13 @@ def select_floor(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0
     left = [c for c in cands if not c.ruled_out]
     if len(left) > 1:
         for c in left:
-            c.size_ratio = _size_ratio(c, planes, f, tolerance_deg)
-        small = [c for c in left if c.size_ratio is not None and c.size_ratio < 1 / size_ratio]
-        if len(small) < len(left):
-            for c in small:
-                c.ruled_out = (f'its ceiling would hold {1 / c.size_ratio:.1f} times the '
-                               'points of its floor (a ceiling is usually cropped or smaller)')
+            c.smaller_floor_at = _smaller_floor_at(c, planes, f, tolerance_deg, size_ratio)
+        fewest = min(len(c.smaller_floor_at) for c in left)
+        for c in left:
+            if len(c.smaller_floor_at) >= fewest + 2:
+                c.ruled_out = (f'its ceiling would hold {size_ratio:g}+ times the points of '
+                               f'its floor at {len(c.smaller_floor_at)} positions (a ceiling '
+                               f'is usually cropped or smaller)')
     left = [c for c in cands if not c.ruled_out]
     if len(left) > 1:
         gap = min(rotation_angle_deg(a.rotation, b.rotation)

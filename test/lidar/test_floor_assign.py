@@ -71,3 +71,52 @@ def test_cli_refuses_ambiguous_room_and_prior_decides(tmp_path, capsys):
     assert main(['boresight', str(tmp_path / 'box'), '-o', str(out),
                  '--prior-rpy-deg', '0', '45', '0']) == 0
     assert rotation_angle_deg(load_boresight(out), TRUTH) < 0.05
+
+
+def _box_planes(origin, size=(8.0, 8.0, 8.0), counts=None, order='xy', seed=0):
+    """Exact plane sets of an empty box seen from ``origin`` at paper B's tilts."""
+    from accelcal_ros.lidar.floor_assign import PlaneSet
+
+    rng = np.random.default_rng(seed)
+    o = np.asarray(origin, float)
+    inward = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0.0]])
+    dist = np.array([o[2], size[2] - o[2], o[0], size[0] - o[0], o[1], size[1] - o[1]])
+    counts = np.ones(6) * 5000 if counts is None else np.asarray(counts, float)
+    sets, gravity = [], []
+    for a, b in sim.paper_protocol_tilts_deg():
+        c = sim.tilt_rotation(a, b, order)
+        sets.append(PlaneSet(inward @ c, dist.copy(), counts.copy()))   # rows: C^T e
+        gravity.append(TRUTH @ c.T @ [0, 0, 1.0] + rng.normal(0, 2e-4, 3))
+    return sets, np.array(gravity)
+
+
+@pytest.mark.parametrize('order', ['xy', 'yx'])
+def test_select_floor_cues_on_exact_box_planes(order):
+    """
+    Exact box planes: the cues, one by one.
+
+    Centred cube: refuse. A smaller ceiling rules out the half turns (which call the ceiling
+    the floor somewhere) but not the quarter turns that only swap floor and walls: still
+    refused. An off-centre scanner: the floor height decides.
+    """
+    from accelcal_ros.lidar.floor_assign import select_floor
+
+    sets, gravity = _box_planes((4.0, 4.0, 4.0), order=order)
+    with pytest.raises(AmbiguousFloorError) as err:
+        select_floor(sets, gravity)
+    equal = err.value.candidates
+    assert any(rotation_angle_deg(c.rotation, TRUTH) < 0.1 for c in equal)
+    assert any(rotation_angle_deg(c.rotation, TRUTH) > 170 for c in equal)
+    sets, gravity = _box_planes((4.0, 4.0, 4.0), counts=[6000, 2000, 4000, 4000, 4000, 4000],
+                                order=order)
+    with pytest.raises(AmbiguousFloorError) as err:
+        select_floor(sets, gravity)
+    left = err.value.candidates
+    assert len(left) < len(equal)
+    assert any(rotation_angle_deg(c.rotation, TRUTH) < 0.1 for c in left)
+    assert all(rotation_angle_deg(c.rotation, TRUTH) < 170 for c in left)
+    # scanner 1.2 m above the floor of the equal box: the floor height decides
+    sets, gravity = _box_planes((3.0, 4.5, 1.2), order=order)
+    r, choice, notes = select_floor(sets, gravity)
+    assert rotation_angle_deg(r, TRUTH) < 0.1 and np.all(choice == 0)
+    assert 'below the scanner' in notes[0]
