@@ -22,6 +22,8 @@ from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
+import rclpy
+from rclpy._rclpy_pybind11 import InvalidHandle, RCLError
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
@@ -70,7 +72,12 @@ class ImuDriverNode(Node):
                 break
             batch = source.poll()
             if len(batch):
-                self._publish(batch)
+                try:
+                    self._publish(batch)
+                except (RCLError, InvalidHandle):
+                    if self._stop.is_set() or not rclpy.ok():
+                        break   # shutting down (Ctrl-C): the publisher went away
+                    raise
 
     def _publish(self, batch):
         # Per sample only plain-float assignments into pre-built messages (no numpy

@@ -4,6 +4,8 @@ imu_driver as its own process in a real DDS graph, probed as ``ros2 topic echo``
 Checks rate, units, frame and covariance conventions (REP-145), agreement of the
 published samples with the simulator's truth model, diagnostics, and bad parameters.
 """
+import time
+
 from accelcal_ros.frames import specific_force_from_roll_pitch
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.model import paper_a_model
@@ -122,3 +124,20 @@ def test_replay_backend_publishes_the_recording(graph, tmp_path):
                        name='imu_driver_bad')
     assert proc.wait_exit(timeout=20.0) == 1
     assert f'{bad}:3' in proc.output()
+
+
+@pytest.mark.graph
+def test_ctrl_c_at_800_hz_stops_cleanly(graph):
+    """SIGINT while the publishing thread runs at 800 Hz: exit 0, no traceback."""
+    for run in range(3):
+        proc = graph.start('imu_driver', params={'backend': 'sim', 'rate_hz': 800.0},
+                           name=f'imu_driver_{run}')
+        deadline = time.monotonic() + 15.0
+        while 'publishing sim' not in proc.output() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(0.5 + 0.1 * run)
+        code = proc.stop()
+        with open(proc.log_path) as handle:
+            text = handle.read()
+        assert code == 0, text
+        assert 'Traceback' not in text and 'RCLError' not in text, text
