@@ -1,0 +1,66 @@
+"""
+Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``.
+"""
+
+
+def register(subparsers, study_subparsers) -> None:
+    """Add the rig subcommands to the ``accelcal`` parser."""
+    p = subparsers.add_parser(
+        'rig-calibrate', help='camera intrinsics, rig rotations R_0i and imu_to_camera',
+        description='Calibrate a camera rig from DIR/poseNN/<camera>.png (a chessboard lying '
+                    'on a floor or table, seen by one or more cameras) and DIR/poseNN/imu.csv '
+                    '(t,ax,ay,az in s and m/s^2, rig still). Writes the rig file (the '
+                    "stitcher's format plus imu_to_camera), <stem>_report.yaml and <stem>.png.")
+    p.add_argument('directory', metavar='DIR')
+    p.add_argument('--board', required=True, metavar='COLSxROWS',
+                   help='inner corners as OpenCV counts them, e.g. 9x6 (one even, one odd)')
+    p.add_argument('--square-m', required=True, type=float, help='square side (m)')
+    p.add_argument('-o', '--output', required=True, help='rig file (YAML) to write')
+    p.add_argument('--intrinsics', nargs='+', default=[], metavar='FILE',
+                   help="camera_info YAML files (ROS camera_calibration) held fixed; matched "
+                        'to cameras by camera_name or file name')
+    p.add_argument('--calibration', metavar='FILE',
+                   help='accelerometer calibration file (accelcal calibrate) applied to the '
+                        'IMU logs before averaging')
+    p.add_argument('--reference', metavar='NAME',
+                   help='reference camera (carries the IMU; default: first name in order)')
+    p.add_argument('--level-board', action='store_true',
+                   help='take the board as level instead of estimating its tilt')
+    p.set_defaults(handler=_calibrate)
+
+    s = study_subparsers.add_parser(
+        'rig', help='rig calibration accuracy against the number of poses',
+        description='Render a 3-camera ring (known K, D, R_0i, imu_to_camera, 0.4 deg board '
+                    'tilt), calibrate it from the first N poses and print the errors.')
+    s.add_argument('--poses', type=int, nargs='+', default=[10, 20, 30, 45])
+    s.add_argument('--seed', type=int, default=1)
+    s.set_defaults(handler=_study)
+
+
+def _calibrate(args) -> int:
+    from accelcal_ros.rig.board import Board, parse_board_size
+    from accelcal_ros.rig.calibrate import calibrate_directory
+    from accelcal_ros.rig.report import report_lines, write_outputs
+
+    cols, rows = parse_board_size(args.board)
+    board = Board(cols, rows, args.square_m)
+    model = None
+    if args.calibration:
+        from accelcal_ros.sensor.calibration_file import load_sensor_model
+
+        model = load_sensor_model(args.calibration)
+    result = calibrate_directory(args.directory, board, args.intrinsics, model,
+                                 args.reference, estimate_tilt=not args.level_board)
+    for line in report_lines(result):
+        print(line)
+    for path in write_outputs(args.output, result):
+        print(f'wrote {path}')
+    return 0
+
+
+def _study(args) -> int:
+    from accelcal_ros.rig.study import run_study
+
+    for line in run_study(args.poses, args.seed):
+        print(line)
+    return 0
