@@ -27,6 +27,7 @@ FEATURE_CLI_MODULES = (
     'accelcal_ros.panorama.cli',
     'accelcal_ros.p2p.cli',
     'accelcal_ros.lidar.cli',
+    'accelcal_ros.rig.cli',
 )
 
 #: argument names (``dest``) that are outputs (also any ``output_*``, ``*_output``,
