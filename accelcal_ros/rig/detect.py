@@ -22,8 +22,8 @@ from accelcal_ros.rig.board import Board
 import cv2
 import numpy as np
 
-FIND_FLAGS = (cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-              | cv2.CALIB_CB_FAST_CHECK)
+FIND_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_FAST_CHECK
+"""Classic detector flags (without NORMALIZE_IMAGE, which costs ~1 s on a partial board)."""
 MIN_CONTRAST = 20.0
 """Grey levels the 'white' interior squares must exceed the 'black' ones by."""
 
@@ -49,8 +49,6 @@ def _order(corners: np.ndarray, board: Board, gray: np.ndarray) -> Tuple[np.ndar
     centres = (grid[:-1, :-1] + grid[:-1, 1:] + grid[1:, :-1] + grid[1:, 1:]) / 4.0
     jj, ii = np.mgrid[0:board.rows - 1, 0:board.cols - 1]
     black = (ii + jj) % 2 == 0
-    values = cv2.getRectSubPix(gray, (3, 3), (0.0, 0.0))  # warm-up for the type check
-    del values
     samples = np.array([cv2.getRectSubPix(gray, (3, 3), (float(x), float(y))).mean()
                         for x, y in centres.reshape(-1, 2)]).reshape(black.shape)
     contrast = float(samples[~black].mean() - samples[black].mean())
@@ -73,10 +71,13 @@ def detect_board(gray: np.ndarray, board: Board) -> Optional[Detection]:
     """
     Find the board in an 8-bit grey image; return its ordered corners or None.
 
-    Corners are refined with ``cv2.cornerSubPix`` (window from the corner spacing);
+    The classic detector first, the sector-based one (``findChessboardCornersSB``) when
+    it fails; corners are refined with ``cv2.cornerSubPix`` (window from the spacing);
     a board whose interior squares show no black/white contrast is rejected (None).
     """
     found, corners = cv2.findChessboardCorners(gray, board.pattern_size, flags=FIND_FLAGS)
+    if (not found or corners is None) and hasattr(cv2, 'findChessboardCornersSB'):
+        found, corners = cv2.findChessboardCornersSB(gray, board.pattern_size)
     if not found or corners is None or len(corners) != board.count:
         return None
     corners = corners.reshape(-1, 2).astype(np.float32)
