@@ -32,8 +32,11 @@ Camera optical frames (REP-103 ``_optical``): z forward, x right, y down. The de
 ``imu_to_camera`` rotation is for a camera looking along body +x:
 camera x = -body y, camera y = -body z, camera z = body x.
 """
+from typing import Tuple
+
 from accelcal_ros.errors import InputError
 import numpy as np
+from numpy.typing import ArrayLike
 
 DEFAULT_IMU_TO_CAMERA = np.array([[0.0, -1.0, 0.0],
                                   [0.0, 0.0, -1.0],
@@ -41,30 +44,30 @@ DEFAULT_IMU_TO_CAMERA = np.array([[0.0, -1.0, 0.0],
 """Body (x fwd, y left, z up) -> optical (x right, y down, z fwd), camera along body +x."""
 
 
-def rot_x(angle_rad):
+def rot_x(angle_rad: float) -> np.ndarray:
     """Rotation matrix about x by ``angle_rad`` (right-handed, active)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def rot_y(angle_rad):
+def rot_y(angle_rad: float) -> np.ndarray:
     """Rotation matrix about y by ``angle_rad`` (right-handed, active)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def rot_z(angle_rad):
+def rot_z(angle_rad: float) -> np.ndarray:
     """Rotation matrix about z by ``angle_rad`` (right-handed, active)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def rotation_from_rpy_radians(roll, pitch, yaw=0.0):
+def rotation_from_rpy_radians(roll: float, pitch: float, yaw: float = 0.0) -> np.ndarray:
     """Body-to-level rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (REP-103 fixed axes)."""
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
 
 
-def rpy_radians_from_rotation(rotation):
+def rpy_radians_from_rotation(rotation: ArrayLike) -> np.ndarray:
     """Inverse of :func:`rotation_from_rpy_radians`: ``(roll, pitch, yaw)`` in radians."""
     r = np.asarray(rotation, dtype=float)
     pitch = np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2]))
@@ -73,7 +76,7 @@ def rpy_radians_from_rotation(rotation):
     return float(roll), float(pitch), float(yaw)
 
 
-def specific_force_from_roll_pitch(roll, pitch):
+def specific_force_from_roll_pitch(roll: ArrayLike, pitch: ArrayLike) -> np.ndarray:
     """
     Return the unit specific force in the body frame at rest (REP-145, +z up when level).
 
@@ -86,7 +89,7 @@ def specific_force_from_roll_pitch(roll, pitch):
                      np.cos(roll) * np.cos(pitch)], axis=-1)
 
 
-def roll_pitch_from_specific_force(force):
+def roll_pitch_from_specific_force(force: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
     """
     Roll and pitch (radians) from specific force ``(..., 3)`` in any consistent unit.
 
@@ -100,17 +103,18 @@ def roll_pitch_from_specific_force(force):
     return roll, pitch
 
 
-def rep103_from_paper_roll_pitch(roll_paper, pitch_paper):
+def rep103_from_paper_roll_pitch(roll_paper: ArrayLike,
+                                 pitch_paper: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
     """Map paper A's eqs. (2)-(3) angles (computed on ``f``) to REP-103: ``(-roll, pitch)``."""
     return -np.asarray(roll_paper, dtype=float), np.asarray(pitch_paper, dtype=float)
 
 
-def paper_gravity_from_specific_force(force):
+def paper_gravity_from_specific_force(force: ArrayLike) -> np.ndarray:
     """Paper A's measured vector ``g`` (level sensor reads [0, 0, -1]) from ``f``: ``g = -f``."""
     return -np.asarray(force, dtype=float)
 
 
-def paper_roll_pitch(gravity):
+def paper_roll_pitch(gravity: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
     """
     Apply paper A eqs. (2)-(3) literally to a measured vector.
 
@@ -125,13 +129,15 @@ def paper_roll_pitch(gravity):
     return roll, pitch
 
 
-def down_in_camera(roll, pitch, imu_to_camera=DEFAULT_IMU_TO_CAMERA):
+def down_in_camera(roll: ArrayLike, pitch: ArrayLike,
+                   imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA) -> np.ndarray:
     """Return the unit gravity direction ("down") in the camera frame from roll/pitch."""
     down_body = -specific_force_from_roll_pitch(roll, pitch)
     return np.asarray(imu_to_camera, dtype=float) @ down_body
 
 
-def rotation_matrix_from_list(values, name='rotation', tolerance=1e-6):
+def rotation_matrix_from_list(values: ArrayLike, name: str = 'rotation',
+                              tolerance: float = 1e-6) -> np.ndarray:
     """
     3x3 rotation from 9 row-major numbers; raises :class:`InputError` if not a rotation.
 

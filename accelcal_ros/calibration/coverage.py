@@ -15,9 +15,12 @@ pointing up reads +1 g), so "+z up" is the sensor lying level and "-z up" upside
 * :func:`recommended_directions`: the fixed layouts the documentation recommends.
 """
 import itertools
+from typing import List, Sequence
 
 from accelcal_ros.frames import roll_pitch_from_specific_force, specific_force_from_roll_pitch
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 def _grid():
@@ -44,13 +47,13 @@ CANDIDATES = _candidates()
 """The 26 easy orientations: 6 faces, 12 edges and 8 corners of a box (unit ``f``)."""
 
 
-def unit_directions(vectors):
+def unit_directions(vectors: ArrayLike) -> np.ndarray:
     """Return the rows of ``vectors`` (N, 3) scaled to unit length."""
     vectors = np.asarray(vectors, dtype=float).reshape(-1, 3)
     return vectors / np.maximum(np.linalg.norm(vectors, axis=1), 1e-12)[:, None]
 
 
-def fibonacci_directions(count):
+def fibonacci_directions(count: int) -> np.ndarray:
     """Return ``count`` near-uniform unit directions (Fibonacci sphere), (count, 3)."""
     k = np.arange(count) + 0.5
     z = 1.0 - 2.0 * k / count
@@ -62,7 +65,7 @@ def fibonacci_directions(count):
 _COVERAGE_PROBES = fibonacci_directions(600)
 
 
-def coverage_fraction(directions, radius_deg=40.0):
+def coverage_fraction(directions: ArrayLike, radius_deg: float = 40.0) -> float:
     """Return the share (0..1) of the sphere within ``radius_deg`` of any direction given."""
     directions = unit_directions(directions)
     if len(directions) == 0:
@@ -71,7 +74,7 @@ def coverage_fraction(directions, radius_deg=40.0):
     return float(np.mean(closest >= np.cos(np.radians(radius_deg))))
 
 
-def direction_spread_deg(directions):
+def direction_spread_deg(directions: ArrayLike) -> float:
     """Return ``(largest angle from the mean direction in deg, mean direction)``."""
     directions = unit_directions(directions)
     mean = directions.sum(axis=0)
@@ -83,7 +86,7 @@ def direction_spread_deg(directions):
     return float(spread), axis
 
 
-def describe_direction(direction):
+def describe_direction(direction: ArrayLike) -> str:
     """
     Name an orientation by its up-pointing axes and roll/pitch, e.g. ``+x-z up (r 180, p -45)``.
 
@@ -100,7 +103,8 @@ def describe_direction(direction):
     return f'{axes} up{label} (roll {roll_deg}, pitch {pitch_deg} deg)'
 
 
-def suggest_directions(captured, count=3, min_separation_deg=25.0):
+def suggest_directions(captured: ArrayLike, count: int = 3,
+                       min_separation_deg: float = 25.0) -> List[str]:
     """
     Return names of up to ``count`` easy orientations to add, farthest from those captured.
 
@@ -122,7 +126,8 @@ def suggest_directions(captured, count=3, min_separation_deg=25.0):
     return names
 
 
-def tilt_errors_rad(truth, estimates, grid=TEST_GRID):
+def tilt_errors_rad(truth: SensorModel, estimates: Sequence[SensorModel],
+                    grid: ArrayLike = TEST_GRID) -> np.ndarray:
     """
     Roll and pitch errors (rad) of calibrations over the test orientations.
 
@@ -150,7 +155,8 @@ def tilt_errors_rad(truth, estimates, grid=TEST_GRID):
     return roll_err, pitch - grid[None, :, 1]
 
 
-def predicted_tilt_error_deg(sensor_model, covariance, model, samples=300, seed=0):
+def predicted_tilt_error_deg(sensor_model: SensorModel, covariance: ArrayLike, model: str,
+                             samples: int = 300, seed: int = 0) -> float:
     """
     Return the predicted p95 roll/pitch error (deg) of a fit, from its covariance.
 
@@ -172,7 +178,7 @@ def predicted_tilt_error_deg(sensor_model, covariance, model, samples=300, seed=
     return float(np.degrees(np.percentile(pooled, 95.0)))
 
 
-def recommended_directions(count=12):
+def recommended_directions(count: int = 12) -> np.ndarray:
     """
     Return the recommended layout of ``count`` positions as unit ``f`` directions.
 
@@ -196,7 +202,7 @@ def recommended_directions(count=12):
     return fibonacci_directions(count)
 
 
-def roll_pitch_deg_of(directions):
+def roll_pitch_deg_of(directions: ArrayLike) -> np.ndarray:
     """Return (roll, pitch) in degrees of unit specific-force directions, (N, 2)."""
     roll, pitch = roll_pitch_from_specific_force(unit_directions(directions))
     return np.degrees(np.stack([roll, pitch], axis=1))

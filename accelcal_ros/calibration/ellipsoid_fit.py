@@ -23,7 +23,7 @@ residual and dropped with a warning; a hold-out check refits without each positi
 each of 5 folds) and reports the residual on the positions left out.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 from accelcal_ros.calibration.coverage import (describe_direction, direction_spread_deg,
                                                predicted_tilt_error_deg, suggest_directions)
@@ -31,6 +31,7 @@ from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.model import MODELS, SensorModel
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
 """Calibration models: paper A's 6-parameter one and the 9-parameter imu_tk one."""
@@ -47,26 +48,26 @@ MAX_CONDITION = 1e3
 """Largest condition number of the column-normalised weighted Jacobian that is accepted."""
 
 
-def parameter_count(model):
+def parameter_count(model: str) -> int:
     """Return the number of parameters of ``model`` (6 or 9)."""
     check_model(model)
     return len(PARAMETER_NAMES[model])
 
 
-def check_model(model):
+def check_model(model: str) -> None:
     """Raise :class:`InputError` unless ``model`` is one of :data:`MODELS`."""
     if model not in MODELS:
         raise InputError(f'unknown calibration model {model!r}; use one of {", ".join(MODELS)}')
 
 
-def params_to_model(params, model):
+def params_to_model(params: ArrayLike, model: str) -> SensorModel:
     """Return the :class:`SensorModel` of a parameter vector ``[k, b(, m)]``."""
     params = np.asarray(params, dtype=float)
     misalignment = params[6:9] if model == 'full' else np.zeros(3)
     return SensorModel(params[0:3], params[3:6], misalignment)
 
 
-def model_to_params(sensor_model, model):
+def model_to_params(sensor_model: SensorModel, model: str) -> np.ndarray:
     """Return the parameter vector ``[k, b(, m)]`` of a :class:`SensorModel`."""
     parts = [sensor_model.scale, sensor_model.bias]
     if model == 'full':
@@ -74,7 +75,8 @@ def model_to_params(sensor_model, model):
     return np.concatenate(parts)
 
 
-def residuals_and_jacobian(params, raw_g, model):
+def residuals_and_jacobian(params: ArrayLike, raw_g: ArrayLike,
+                           model: str) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return eq. (5) residuals ``r_k`` (K,) and their Jacobian (K, p) at ``params``.
 
@@ -101,7 +103,7 @@ def residuals_and_jacobian(params, raw_g, model):
     return norm - 1.0, jac
 
 
-def position_sigmas_g(raw_g, std_of_mean_g):
+def position_sigmas_g(raw_g: ArrayLike, std_of_mean_g: ArrayLike) -> np.ndarray:
     """
     Return the expected standard deviation (g) of each position's eq. (5) residual.
 
@@ -136,36 +138,36 @@ class FitResult:
     warnings: List[str] = field(default_factory=list)
 
     @property
-    def positions(self):
+    def positions(self) -> int:
         """Return the number of positions used in the fit."""
         return int(np.count_nonzero(self.used))
 
     @property
-    def dropped(self):
+    def dropped(self) -> List[int]:
         """Return the indices of the positions dropped as outliers."""
         return [int(i) for i in np.flatnonzero(~self.used)]
 
     @property
-    def std(self):
+    def std(self) -> np.ndarray:
         """Return the standard deviation of each parameter (same order as ``parameters``)."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
     @property
-    def scale_std(self):
+    def scale_std(self) -> np.ndarray:
         """Return the standard deviations of the scale factors."""
         return self.std[0:3]
 
     @property
-    def bias_std(self):
+    def bias_std(self) -> np.ndarray:
         """Return the standard deviations of the biases (g)."""
         return self.std[3:6]
 
     @property
-    def misalignment_std(self):
+    def misalignment_std(self) -> np.ndarray:
         """Return the standard deviations of the misalignment angles (rad; 0 if diagonal)."""
         return self.std[6:9] if self.model == 'full' else np.zeros(3)
 
-    def summary(self):
+    def summary(self) -> str:
         """Return a one-line human summary of the fit."""
         holdout = ('n/a' if self.holdout_rms_g is None
                    else f'{self.holdout_rms_g * 1e3:.2f} mg')
@@ -198,7 +200,7 @@ def _covariance(params, raw_g, sigmas, model):
     return np.linalg.pinv(info) * inflation, weighted, residuals
 
 
-def condition_number(weighted_jacobian):
+def condition_number(weighted_jacobian: ArrayLike) -> float:
     """Return the condition number of a Jacobian with its columns scaled to unit length."""
     norms = np.linalg.norm(weighted_jacobian, axis=0)
     if np.any(norms == 0.0):
@@ -215,10 +217,12 @@ def _refusal_hint(raw_g, model):
     return where, '; '.join(hints)
 
 
-def fit_ellipsoid(raw_g, std_of_mean_g=None, samples_per_position=None, model='full',
-                  initial=None, drop_outliers=True, outlier_threshold=6.0,
-                  holdout=True, min_positions=None, max_condition=MAX_CONDITION,
-                  max_predicted_deg=5.0):
+def fit_ellipsoid(raw_g: ArrayLike, std_of_mean_g: Optional[ArrayLike] = None,
+                  samples_per_position: Optional[int] = None, model: str = 'full',
+                  initial: Optional[SensorModel] = None, drop_outliers: bool = True,
+                  outlier_threshold: float = 6.0, holdout: bool = True,
+                  min_positions: Optional[int] = None, max_condition: float = MAX_CONDITION,
+                  max_predicted_deg: float = 5.0) -> 'FitResult':
     """
     Fit the sensitivity ellipsoid to ``K`` mean still readings ``raw_g`` (K, 3), in g.
 

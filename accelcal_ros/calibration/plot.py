@@ -6,13 +6,18 @@ same readings corrected by the calibration, against the unit sphere. Right: the 
 residual of every position in mg (dropped positions in red). Needs matplotlib.
 """
 import io
+from typing import Sequence
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.fileio import write_bytes_atomic
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def plot_calibration(path, captures_g, residuals_g, sensor_model, dropped=(), title=''):
+def plot_calibration(path: str, captures_g: ArrayLike, residuals_g: ArrayLike,
+                     sensor_model: SensorModel, dropped: Sequence[int] = (),
+                     title: str = '') -> None:
     """Write a PNG of the calibration to ``path`` (atomically)."""
     try:
         import matplotlib
@@ -51,7 +56,7 @@ def plot_calibration(path, captures_g, residuals_g, sensor_model, dropped=(), ti
     write_bytes_atomic(path, buffer.getvalue())
 
 
-def plot_calibration_file(path, calibration_path):
+def plot_calibration_file(path: str, calibration_path: str) -> None:
     """Write the plot of a calibration file (which stores its captures) to ``path``."""
     from accelcal_ros.sensor.calibration_file import load_calibration
     from accelcal_ros.errors import FileFormatError
@@ -67,6 +72,9 @@ def plot_calibration_file(path, calibration_path):
     if len(captures) == 0 or len(residuals) != len(captures):
         raise FileFormatError(calibration_path, 'no captures_g/residuals_g to plot (written '
                               'by another tool?)')
+    if not (np.all(np.abs(captures) < 1e3) and np.all(np.abs(residuals) < 1e3)):
+        raise FileFormatError(calibration_path, 'captures_g/residuals_g hold NaN, infinite '
+                              'or absurd values (|value| >= 1000 g)')
     title = (f'{record.model} model, {data.get("positions")} positions, residual RMS '
              f'{float(data.get("residual_rms_g", float("nan"))) * 1e3:.2f} mg, predicted '
              f'roll/pitch p95 {record.predicted_tilt_error_deg:.3f} deg')

@@ -16,13 +16,15 @@ Order of calls: ``start`` -> samples / ``capture_now`` -> ``finish`` or ``cancel
 out of order raise :class:`~accelcal_ros.errors.CalibrationError` saying what to call.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from accelcal_ros.calibration.coverage import coverage_fraction, suggest_directions
-from accelcal_ros.calibration.ellipsoid_fit import check_model, fit_ellipsoid, parameter_count
+from accelcal_ros.calibration.ellipsoid_fit import (check_model, fit_ellipsoid, FitResult,
+                                                    parameter_count)
 from accelcal_ros.errors import AccelcalError, CalibrationError
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass
@@ -71,7 +73,7 @@ class Progress:
     rejected_samples: int = 0
     note: str = ''
 
-    def text(self):
+    def text(self) -> str:
         """Return a one-line readout."""
         if not self.active:
             return 'no calibration session (call calibration/start)'
@@ -98,7 +100,7 @@ class Calibrator:
         self._progress_cache = None
 
     # -- session control ---------------------------------------------------------------
-    def start(self):
+    def start(self) -> None:
         """Begin a new session; refused while one is running."""
         if self.active:
             raise CalibrationError(
@@ -113,7 +115,7 @@ class Calibrator:
         self._progress_cache = None
         self.active = True
 
-    def cancel(self):
+    def cancel(self) -> int:
         """Discard the running session; refused if none is running."""
         self._require_active('cancel')
         self.active = False
@@ -127,12 +129,12 @@ class Calibrator:
                                    'call calibration/start first')
 
     @property
-    def needed(self):
+    def needed(self) -> int:
         """Return the number of positions the fit needs."""
         return max(self.config.min_positions, parameter_count(self.config.model) + 1)
 
     # -- samples -----------------------------------------------------------------------
-    def add_samples(self, t, accel_g):
+    def add_samples(self, t: ArrayLike, accel_g: ArrayLike) -> List[str]:
         """
         Feed samples ``t`` (N,) in s and ``accel_g`` (N, 3) in g; returns event messages.
 
@@ -169,7 +171,7 @@ class Calibrator:
                           f'{self.config.saturation_g:g} g); they are not used')
         return events
 
-    def flush(self):
+    def flush(self) -> List[str]:
         """End the current dwell (end of a recording); returns event messages."""
         if not self.active:
             return []
@@ -241,7 +243,7 @@ class Calibrator:
         self._progress_cache = None
         return cap
 
-    def capture_now(self, min_still_s=0.3):
+    def capture_now(self, min_still_s: float = 0.3) -> 'Capture':
         """
         Capture the current still dwell now; returns the :class:`Capture`.
 
@@ -268,14 +270,14 @@ class Calibrator:
         return self._add_capture(seg.stats(), seg.segment_id, automatic=False)
 
     # -- progress and fit --------------------------------------------------------------
-    def captured_means(self):
+    def captured_means(self) -> Tuple[np.ndarray, np.ndarray]:
         """Return the captured mean readings (K, 3) in g and their noise of the mean."""
         if not self.captures:
             return np.zeros((0, 3)), np.zeros((0, 3))
         return (np.array([c.mean_g for c in self.captures]),
                 np.array([c.std_of_mean_g for c in self.captures]))
 
-    def progress(self):
+    def progress(self) -> 'Progress':
         """Return the :class:`Progress` of the session (fit of the current set cached)."""
         if not self.active:
             return Progress(False, 0, 0.0, None, self.needed)
@@ -306,7 +308,8 @@ class Calibrator:
         self._progress_cache = progress
         return progress
 
-    def finish(self, drop_outliers=True, holdout=True, end=True):
+    def finish(self, drop_outliers: bool = True, holdout: bool = True,
+               end: bool = True) -> FitResult:
         """
         Fit the captured positions; returns the FitResult and ends the session.
 
@@ -329,6 +332,6 @@ class Calibrator:
             self.end()
         return result
 
-    def end(self):
+    def end(self) -> None:
         """End the session without fitting (after a fit was saved)."""
         self.active = False

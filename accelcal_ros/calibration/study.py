@@ -16,6 +16,7 @@ sensor) recomputed with the package's own model and angle code, see
 :func:`paper_worked_example`.
 """
 import time
+from typing import List, Tuple
 
 from accelcal_ros.calibration.coverage import (recommended_directions, TEST_GRID, tilt_errors_rad,
                                                unit_directions)
@@ -26,6 +27,7 @@ from accelcal_ros.frames import (paper_roll_pitch, roll_pitch_from_specific_forc
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB
 from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
+from numpy.typing import ArrayLike
 
 SIM_RATE_HZ = 100.0
 """Sampling rate of the simulated captures: 1 s per position = 100 samples."""
@@ -37,7 +39,7 @@ PAPER_LEVEL_VECTORS = {100: (-0.062, -0.0076, -1.071), 300: (-0.029, -0.058, -1.
 PAPER_PITCH_ERRORS_DEG = {100: 3.31, 300: 1.53}
 
 
-def layout_directions(layout, positions, rng):
+def layout_directions(layout: str, positions: int, rng: np.random.Generator) -> np.ndarray:
     """Return unit ``f`` directions (positions, 3): ``recommended`` or ``random`` (uniform)."""
     if layout == 'recommended':
         return recommended_directions(positions)
@@ -46,7 +48,9 @@ def layout_directions(layout, positions, rng):
     raise InputError(f'unknown layout {layout!r}; use recommended or random')
 
 
-def simulate_position_means(truth, directions, samples, rng, rate_hz=SIM_RATE_HZ):
+def simulate_position_means(truth: SensorModel, directions: ArrayLike, samples: int,
+                            rng: np.random.Generator,
+                            rate_hz: float = SIM_RATE_HZ) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return mean raw readings (K, 3) in g and their noise of the mean (None for 1 sample).
 
@@ -106,7 +110,7 @@ def fitted_models(positions=12, seconds_per_position=1.0, count=100, seed=0,
     return models
 
 
-def error_statistics(truth, models):
+def error_statistics(truth: SensorModel, models: List[SensorModel]) -> dict:
     """Return a dict of parameter, unit-sphere and roll/pitch errors of fitted ``models``."""
     scale = np.array([m.scale for m in models])
     bias = np.array([m.bias for m in models])
@@ -128,7 +132,8 @@ def error_statistics(truth, models):
     }
 
 
-def study_row(truth, positions, samples, trials, seed, layout, model):
+def study_row(truth: SensorModel, positions: int, samples: int, trials: int, seed: int,
+              layout: str, model: str) -> dict:
     """Return one study row (dict) for a configuration, or one saying it was refused."""
     models, refused, fit_s, predicted = _fit_trials(truth, positions, samples, trials, seed,
                                                     layout, model, retries=2)
@@ -140,7 +145,7 @@ def study_row(truth, positions, samples, trials, seed, layout, model):
     return row
 
 
-def paper_worked_example():
+def paper_worked_example() -> List[dict]:
     """
     Recompute paper A's worked example with the package's own code; returns rows (dicts).
 
@@ -177,7 +182,7 @@ def paper_worked_example():
     return rows
 
 
-def format_worked_example(rows):
+def format_worked_example(rows: List[dict]) -> List[str]:
     """Return the worked example as printable lines."""
     lines = ["Paper A worked example (level sensor, K=500 as truth; paper's level = "
              '[0, 0, -1])']
@@ -224,7 +229,7 @@ def run_study(trials=100, seed=0, counts=POSITION_COUNTS, models=('diagonal', 'f
     return rows
 
 
-def format_row(row):
+def format_row(row: dict) -> str:
     """Return one printable line of a study row."""
     per = '1 sample' if row['samples'] == 1 else f'{row["samples"] / SIM_RATE_HZ:g} s'
     head = (f'{row["positions"]:>4} {row["layout"]:>11} {per:>8} {row["model"]:>8} '

@@ -19,6 +19,7 @@ from collections import deque
 import errno
 import os
 import struct
+from typing import Tuple
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.errors import DeviceError, InputError
@@ -26,7 +27,7 @@ from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
 import numpy as np
 
 
-def open_smbus(bus_number):
+def open_smbus(bus_number: int) -> object:
     """Open ``/dev/i2c-<bus_number>`` with smbus2; DeviceError with a hint if impossible."""
     path = f'/dev/i2c-{bus_number}'
     if not os.path.exists(path):
@@ -63,7 +64,7 @@ class Adxl345:
         bus = '?' if self.bus_number is None else self.bus_number
         return f'I2C bus {bus}, address 0x{self.address:02X}'
 
-    def check_device_id(self):
+    def check_device_id(self) -> None:
         """Read DEVID; DeviceError naming bus, address and the value read unless 0xE5."""
         try:
             value = self.bus.read_byte_data(self.address, reg.DEVID)
@@ -77,7 +78,7 @@ class Adxl345:
                               '(not an ADXL345, or another device at this address)')
         return value
 
-    def configure(self, rate_hz, range_g, fifo):
+    def configure(self, rate_hz: float, range_g: int, fifo: bool) -> None:
         """Set output data rate, range (full resolution), FIFO mode, and start measuring."""
         if float(rate_hz) not in reg.RATE_CODES:
             raise InputError(f'rate_hz {rate_hz} is not an ADXL345 output data rate '
@@ -94,21 +95,21 @@ class Adxl345:
         write(self.address, reg.POWER_CTL, reg.POWER_CTL_MEASURE)
         self.rate_hz, self.range_g, self.fifo = float(rate_hz), range_g, fifo
 
-    def read_sample(self):
+    def read_sample(self) -> np.ndarray:
         """Read x, y, z (g) in one 6-byte block (little-endian int16, 3.9 mg/LSB)."""
         data = self.bus.read_i2c_block_data(self.address, reg.DATAX0, 6)
         return np.array(struct.unpack('<3h', bytes(data)), dtype=float) * FULL_RES_G_PER_LSB
 
-    def fifo_entries(self):
+    def fifo_entries(self) -> int:
         """Return the number of samples waiting in the FIFO (FIFO_STATUS bits 5:0)."""
         return self.bus.read_byte_data(self.address, reg.FIFO_STATUS) & reg.FIFO_ENTRIES_MASK
 
-    def overrun(self):
+    def overrun(self) -> bool:
         """Return True if the FIFO overran since the last check (INT_SOURCE.Overrun)."""
         return bool(self.bus.read_byte_data(self.address, reg.INT_SOURCE)
                     & reg.INT_SOURCE_OVERRUN)
 
-    def read_fifo(self):
+    def read_fifo(self) -> Tuple[np.ndarray, bool]:
         """
         Drain the FIFO: returns ``(samples (N, 3) in g, overrun flag)``.
 

@@ -14,6 +14,7 @@ from collections import deque
 import errno
 import struct
 import time
+from typing import List
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
@@ -41,7 +42,7 @@ class SimulatedAdxl345Bus:
         self.transactions = 0
 
     # -- test controls -------------------------------------------------------------
-    def fail_next(self, count=1):
+    def fail_next(self, count: int = 1) -> None:
         """Make the next ``count`` bus transactions raise OSError(EIO)."""
         self._failures += count
 
@@ -92,7 +93,7 @@ class SimulatedAdxl345Bus:
         self._advance()
 
     # -- smbus2 interface ------------------------------------------------------------
-    def read_byte_data(self, address, register):
+    def read_byte_data(self, address: int, register: int) -> int:
         """Read one register."""
         self._transaction(address)
         if register == reg.DEVID:
@@ -105,7 +106,7 @@ class SimulatedAdxl345Bus:
             return value
         return self.registers.get(register, 0)
 
-    def write_byte_data(self, address, register, value):
+    def write_byte_data(self, address: int, register: int, value: int) -> None:
         """Write one register; leaving stream mode clears the FIFO."""
         self._transaction(address)
         self.registers[register] = value & 0xFF
@@ -115,7 +116,7 @@ class SimulatedAdxl345Bus:
             self._start = self.clock() if self._measuring() else None
             self.generated = 0
 
-    def read_i2c_block_data(self, address, register, length):
+    def read_i2c_block_data(self, address: int, register: int, length: int) -> List[int]:
         """Multi-byte read; from DATAX0 with the FIFO on it pops one entry."""
         self._transaction(address)
         if register != reg.DATAX0 or length != 6:
@@ -126,5 +127,5 @@ class SimulatedAdxl345Bus:
             value = self.latest
         return self._encode(value)
 
-    def close(self):
+    def close(self) -> None:
         """Nothing to release."""

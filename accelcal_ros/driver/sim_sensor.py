@@ -15,15 +15,18 @@ so the analog noise drawn before quantisation has variance ``sigma^2 - LSB^2 / 1
 Readings are quantised to the full-resolution LSB (3.9 mg) and clipped to +-range.
 Everything is deterministic for a given ``seed`` (samples drawn in order).
 """
+from typing import Iterable, Tuple
+
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import specific_force_from_roll_pitch
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB, RANGES_G
 from accelcal_ros.sensor.model import paper_a_model
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 
-def near_uniform_poses_deg(count=24):
+def near_uniform_poses_deg(count: int = 24) -> np.ndarray:
     """
     ``count`` (roll, pitch) pairs in degrees whose gravity directions cover the sphere.
 
@@ -40,7 +43,7 @@ def near_uniform_poses_deg(count=24):
     return np.stack([roll, pitch], axis=1)
 
 
-def poses_from_flat_list(values):
+def poses_from_flat_list(values: Iterable[float]) -> np.ndarray:
     """``(K, 2)`` array of (roll, pitch) degrees from a flat list; empty -> built-in 24."""
     values = np.asarray(list(values), dtype=float)
     if values.size == 0:
@@ -78,18 +81,18 @@ class SimulatedAdxl345:
         self._rotations = Rotation.from_euler('xyz', rpy)  # extrinsic: Rz Ry Rx
 
     @property
-    def period_s(self):
+    def period_s(self) -> float:
         """Time of one dwell plus one move."""
         return self.dwell_s + self.move_s
 
-    def pose_index(self, t):
+    def pose_index(self, t: ArrayLike) -> np.ndarray:
         """Index of the orientation dwelt in at time ``t`` (s), or -1 while moving."""
         t = np.asarray(t, dtype=float)
         phase = np.mod(t, self.period_s)
         index = np.floor_divide(t, self.period_s).astype(int) % len(self.poses_deg)
         return np.where(phase < self.dwell_s, index, -1)
 
-    def attitude_at(self, t):
+    def attitude_at(self, t: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
         """
         Return the true (roll, pitch) in radians at times ``t`` (s), arrays of ``t``'s shape.
 
@@ -110,12 +113,12 @@ class SimulatedAdxl345:
         euler = rotation.as_euler('xyz')
         return euler[:, 0], euler[:, 1]
 
-    def true_specific_force(self, t):
+    def true_specific_force(self, t: ArrayLike) -> np.ndarray:
         """Return the unit specific force in the body frame (g) at times ``t``: ``(N, 3)``."""
         roll, pitch = self.attitude_at(t)
         return specific_force_from_roll_pitch(roll, pitch)
 
-    def read(self, t):
+    def read(self, t: ArrayLike) -> np.ndarray:
         """
         Return raw readings in g at times ``t`` (s): model, noise, quantisation, clipping.
 
@@ -123,7 +126,7 @@ class SimulatedAdxl345:
         """
         return self.read_with_truth(t)[0]
 
-    def read_with_truth(self, t):
+    def read_with_truth(self, t: ArrayLike) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(readings (N, 3) g, roll (N,) rad, pitch (N,) rad)`` at times ``t``."""
         roll, pitch = self.attitude_at(t)
         raw = self.truth.distort(specific_force_from_roll_pitch(roll, pitch))

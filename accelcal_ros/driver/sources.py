@@ -29,7 +29,7 @@ class Batch:
     truth_rp: Optional[np.ndarray] = None
 
     @classmethod
-    def empty(cls):
+    def empty(cls) -> 'Batch':
         """Return a batch without samples."""
         return cls(np.empty(0), np.empty((0, 3)))
 
@@ -73,12 +73,12 @@ class SimSource:
         self._t0 = None
         self._next = 0
 
-    def start(self):
+    def start(self) -> None:
         """Start the simulated clock now."""
         self._t0 = self.clock()
         self._next = 0
 
-    def next_poll_time(self):
+    def next_poll_time(self) -> float:
         """
         Return when the next sample (or group of samples) is due.
 
@@ -87,7 +87,7 @@ class SimSource:
         """
         return self._t0 + (self._next + self.batch - 1) * self.period
 
-    def poll(self):
+    def poll(self) -> 'Batch':
         """Return every sample due by now."""
         due = int(np.floor((self.clock() - self._t0) / self.period + 1e-9)) + 1
         if due <= self._next:
@@ -130,22 +130,23 @@ class I2cSource:
         self._backoff = 0.0
 
     @classmethod
-    def from_bus_number(cls, bus_number, address, rate_hz, range_g, use_fifo, **kwargs):
+    def from_bus_number(cls, bus_number: int, address: int, rate_hz: float, range_g: int,
+                        use_fifo: bool, **kwargs) -> 'I2cSource':
         """Open ``/dev/i2c-<bus_number>`` and wrap the ADXL345 at ``address``."""
         bus = open_smbus(bus_number)
         return cls(Adxl345(bus, address, bus_number), rate_hz, range_g, use_fifo, **kwargs)
 
-    def start(self):
+    def start(self) -> None:
         """Check DEVID and configure the device (DeviceError if it is not an ADXL345)."""
         self.device.check_device_id()
         self.device.configure(self.rate_hz, self.range_g, self.use_fifo)
         self._next_poll = self.clock() + self.period
 
-    def next_poll_time(self):
+    def next_poll_time(self) -> float:
         """Return when to poll next (later while backing off after errors)."""
         return self._next_poll
 
-    def poll(self):
+    def poll(self) -> 'Batch':
         """Read what is available; an I/O error gives an empty batch and a back-off."""
         now = self.clock()
         try:
@@ -194,12 +195,12 @@ class ReplaySource:
         self._t0 = None
         self._next = 0
 
-    def start(self):
+    def start(self) -> None:
         """Start replaying now."""
         self._t0 = self.clock()
         self._next = 0
 
-    def next_poll_time(self):
+    def next_poll_time(self) -> float:
         """Return when the next recorded sample is due (now when not in real time)."""
         if self._next >= len(self.t):
             return self.clock() + 0.1
@@ -207,7 +208,7 @@ class ReplaySource:
             return self.clock()
         return self._t0 + (self.t[self._next] - self.t[0])
 
-    def poll(self):
+    def poll(self) -> 'Batch':
         """Return the next recorded samples that are due."""
         if self._next >= len(self.t):
             self.stats.finished = True
