@@ -59,11 +59,12 @@ properties ``duration_s`` and ``accel_std_of_mean`` (``accel_std / sqrt(samples)
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -137,11 +138,11 @@ class _Block:
         self.gyro_count = 0
         self.gx = self.gy = self.gz = 0.0
 
-    def mean(self):
+    def mean(self) -> Tuple[float, float, float]:
         n = self.count
         return (self.sx / n, self.sy / n, self.sz / n)
 
-    def gyro_mean(self):
+    def gyro_mean(self) -> Tuple[float, float, float]:
         n = self.gyro_count
         return (self.gx / n, self.gy / n, self.gz / n)
 
@@ -270,7 +271,8 @@ class StillnessDetector:
             block.gz += gz
         return True
 
-    def add_many(self, t_s, accel, gyro=None) -> int:
+    def add_many(self, t_s: ArrayLike, accel: ArrayLike,
+                 gyro: Optional[ArrayLike] = None) -> int:
         """Add samples ``t_s`` (N,), ``accel`` (N, 3), ``gyro`` (N, 3) or None in order."""
         t_list = np.asarray(t_s, dtype=float).reshape(-1).tolist()
         a_list = np.asarray(accel, dtype=float).reshape(-1, 3).tolist()
@@ -335,7 +337,8 @@ class StillnessDetector:
             self._end_segment(trim=True)
 
 
-def still_segments(t_s, accel, gyro=None, thresholds: Optional[StillnessThresholds] = None,
+def still_segments(t_s: ArrayLike, accel: ArrayLike, gyro: Optional[ArrayLike] = None,
+                   thresholds: Optional[StillnessThresholds] = None,
                    accel_unit_m_s2: float = STANDARD_GRAVITY_M_S2,
                    min_still_s: Optional[float] = None) -> List[SegmentStats]:
     """
