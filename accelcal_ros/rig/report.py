@@ -1,9 +1,10 @@
 """
 What rig calibration writes: the rig file, the report (YAML) and the plot (PNG).
 
-Rig file: the stitcher's format (:mod:`accelcal_ros.panorama.rig`: ``cameras`` with
-``name``, ``width``, ``height``, ``K``, ``D``, ``R`` = ``R_0i``, reference first) plus a
-top-level ``imu_to_camera`` (9 values row-major, IMU body -> reference optical frame).
+Rig file: the stitcher's format, written by :func:`accelcal_ros.camera.rig.save_rig`
+(``cameras`` with ``name``, ``width``, ``height``, ``K``, ``D``, ``R`` = ``R_0i``,
+reference first) with the top-level ``imu_to_camera`` (9 values row-major, IMU body ->
+reference optical frame).
 Report: per camera the intrinsics, their source, reprojection RMS and per-view errors;
 per camera ``R_0i`` (rotation vector, optical axis azimuth/elevation in the reference
 frame) with 1-sigma about the reference camera's x, y, z axes, ``t_0i`` and baseline;
@@ -12,6 +13,8 @@ views and poses with the reason, warnings and timings.
 """
 from typing import List
 
+from accelcal_ros.camera import CameraModel
+from accelcal_ros.camera.rig import Rig, RigCamera, save_rig
 from accelcal_ros.fileio import dump_yaml, write_text_atomic, write_with_atomic
 from accelcal_ros.rig.calibrate import RigCalibration
 import numpy as np
@@ -22,15 +25,15 @@ def _floats(values, digits: int = 9) -> list:
     return [float(round(float(v), digits)) + 0.0 for v in np.asarray(values).ravel()]
 
 
-def rig_mapping(result: RigCalibration) -> dict:
-    """The rig file's mapping (stitcher format plus ``imu_to_camera``)."""
+def rig_of(result: RigCalibration) -> Rig:
+    """The calibrated rig (:class:`accelcal_ros.camera.rig.Rig`) with its ``imu_to_camera``."""
     cams = []
     for i, name in enumerate(result.cameras):
         w, h = result.sizes[i]
-        cams.append({'name': name, 'width': int(w), 'height': int(h),
-                     'K': _floats(result.K[i], 6), 'D': _floats(result.D[i][:5], 9),
-                     'R': _floats(result.fit.rotations[i], 9)})
-    return {'cameras': cams, 'imu_to_camera': _floats(result.mount.imu_to_camera, 9)}
+        model = CameraModel(int(w), int(h), np.round(result.K[i], 6),
+                            np.round(result.D[i][:5], 9))
+        cams.append(RigCamera.from_model(name, model, result.fit.rotations[i]))
+    return Rig(tuple(cams), result.mount.imu_to_camera)
 
 
 def _axis_deg(r: np.ndarray) -> list:
@@ -128,7 +131,7 @@ def write_outputs(path: str, result: RigCalibration) -> List[str]:
     stem = path[:-5] if path.endswith('.yaml') else path
     report_path = stem + '_report.yaml'
     plot_path = stem + '.png'
-    write_text_atomic(path, dump_yaml(rig_mapping(result)))
+    save_rig(path, rig_of(result))
     write_text_atomic(report_path, dump_yaml(report_mapping(result)))
     plot(plot_path, result)
     return [path, report_path, plot_path]
