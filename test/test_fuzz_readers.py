@@ -351,6 +351,78 @@ def test_directory_missing_and_unreadable_paths_raise_accelcal_error(tmp_path, n
             read(path)
 
 
+COMMAND_CASES = max(CASES // 6, 1)
+#: commands run on a damaged input X (the other inputs valid): exit 0 or 1, one line, no bug
+COMMANDS = {
+    'recording_csv': ['apply', 'X', '--calibration', 'calib.yaml', '-o', 'out.csv'],
+    'calibration_yaml': ['plot-calibration', 'X', '-o', 'out.png'],
+    'rig_yaml': ['stitch', '--rig', 'X', '--roll', '1', '--pitch', '2', '--width', '64',
+                 '--height', '32', '-o', 'out.png', 'img0.png', 'img1.png'],
+    'boresight_yaml': ['georeference', '--cloud', 'b.pcd', '--poses', 'poses.csv',
+                       '--boresight', 'X', '-o', 'out.pcd'],
+    'poses_csv': ['georeference', '--cloud', 'b.pcd', '--poses', 'X', '--boresight',
+                  'bs.yaml', '-o', 'out.pcd'],
+    'pcd_binary_compressed': ['georeference', '--cloud', 'X', '--poses', 'poses.csv',
+                              '--boresight', 'bs.yaml', '-o', 'out.ply'],
+}
+
+
+def _calibration_with_captures(path):
+    """A calibration file as ``accelcal calibrate`` writes it (with captures to plot)."""
+    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+
+    directions = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0],
+                           [0, -1, 0.0]])
+    write_text_atomic(path, dump_yaml({
+        'model': 'full', 'scale': [1.01, 0.99, 1.002], 'bias': [0.01, -0.02, 0.003],
+        'misalignment': [0.001, -0.002, 0.0005], 'positions': 6,
+        'predicted_tilt_error_deg': 0.05, 'residual_rms_g': 0.001, 'dropped_positions': [],
+        'captures_g': (directions * 1.01).tolist(),
+        'residuals_g': [0.001, -0.002, 0.0005, 0.0, 0.001, -0.001]}))
+
+
+@pytest.mark.parametrize('name', sorted(COMMANDS))
+def test_commands_on_damaged_inputs_fail_with_one_line(tmp_path, monkeypatch, capsys, name):
+    """`accelcal` on a damaged input: status 0 or 1 and at most one error line, no bug."""
+    import cv2
+
+    from accelcal_ros.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    _calibration_with_captures('calib.yaml')
+    for reader, path in (('poses_csv', 'poses.csv'), ('boresight_yaml', 'bs.yaml'),
+                         ('pcd_binary_compressed', 'b.pcd')):
+        READERS[reader][1](path)
+    for k in range(2):
+        cv2.imwrite(f'img{k}.png', np.full((480, 640, 3), 100 + 50 * k, np.uint8))
+    filename, write, _ = READERS[name]
+    write(filename)
+    if name == 'calibration_yaml':
+        _calibration_with_captures(filename)
+    argv = [filename if a == 'X' else a for a in COMMANDS[name]]
+    damaged_argv = ['damaged' + os.path.splitext(filename)[1] if a == 'X' else a
+                    for a in COMMANDS[name]]
+    assert main(argv) == 0, capsys.readouterr().err  # the undamaged input works
+    with open(filename, 'rb') as handle:
+        valid = handle.read()
+    rng = random.Random(f'{SEED}-command-{name}')
+    failures = []
+    for case in range(COMMAND_CASES):
+        damaged, what = mutate(valid, rng)
+        with open(damaged_argv[damaged_argv.index('damaged' + os.path.splitext(filename)[1])],
+                  'wb') as handle:
+            handle.write(damaged)
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)
+            status = main(damaged_argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        errors = [line for line in err if 'error:' in line]
+        if status not in (0, 1) or len(errors) > 1 or any('internal error' in e for e in err):
+            failures.append(f'{name} case {case} ({what}): status {status}: {err[-1:]}\n'
+                            f'    file bytes: {damaged[:300]!r}')
+    assert not failures, '\n'.join(failures[:10])
+
+
 def main():
     """Print cases and time per reader (``python test/test_fuzz_readers.py``)."""
     import tempfile
