@@ -368,7 +368,7 @@ COMMANDS = {
 
 
 def _calibration_with_captures(path):
-    """A calibration file as ``accelcal calibrate`` writes it (with captures to plot)."""
+    """Write a calibration file as ``accelcal calibrate`` does (with captures to plot)."""
     from accelcal_ros.fileio import dump_yaml, write_text_atomic
 
     directions = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0],
