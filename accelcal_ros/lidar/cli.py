@@ -120,7 +120,7 @@ def _boresight_from_bag(args, prior, model):
     from accelcal_ros.errors import CalibrationError
     from accelcal_ros.lidar.boresight import calibrate_boresight
     from accelcal_ros.recording.cli_support import open_bag, warn
-    from accelcal_ros.recording.lidar_bag import collect_positions
+    from accelcal_ros.lidar.bag import collect_positions
 
     with open_bag(args.directory, args.stamp) as bag:
         positions, dropped, spans, warnings = collect_positions(
@@ -160,7 +160,7 @@ def _georeference_bag(args):
     from accelcal_ros.lidar.cloud import write_cloud
     from accelcal_ros.lidar.poses import PoseStream, read_poses_csv
     from accelcal_ros.recording.cli_support import open_bag, warn
-    from accelcal_ros.recording.lidar_bag import georeference_scans
+    from accelcal_ros.lidar.bag import georeference_scans
     from accelcal_ros.recording.streams import read_odometry
 
     boresight = load_boresight(args.boresight)

@@ -302,7 +302,7 @@ def _p2p_bag_main(args):
     from accelcal_ros.p2p.params import P2P_PARAMS
     from accelcal_ros.p2p.pipeline import P2PPipeline
     from accelcal_ros.recording.cli_support import open_bag, warn
-    from accelcal_ros.recording.p2p_bag import first_camera_info, results_csv, run_p2p
+    from accelcal_ros.p2p.bag import first_camera_info, results_csv, run_p2p
     from accelcal_ros.recording.streams import attitude_series
 
     values = {spec.name: spec.default for spec in P2P_PARAMS}

@@ -167,7 +167,7 @@ def _stitch_bag(args):
     from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.panorama.stitch import Stitcher
     from accelcal_ros.recording.cli_support import open_bag, warn
-    from accelcal_ros.recording.stitch_bag import FrameSink, stitch_recording
+    from accelcal_ros.panorama.bag import FrameSink, stitch_recording
     from accelcal_ros.recording.streams import attitude_series
     import numpy as np
 
