@@ -218,6 +218,20 @@ def _calibrate(args):
     return 0
 
 
+def _warn_if_calibration_misfits(model, t, accel_g):
+    """Warn (stderr) when |g| after correction is far from 1 in the still periods."""
+    from accelcal_ros.sensor.stillness import still_segments
+    import numpy as np
+
+    segments = still_segments(t, accel_g)
+    if not segments:
+        return
+    fit = model.gravity_fit(np.array([s.accel_mean for s in segments]))
+    if not fit.fits:
+        print(f'warning: {fit.message()} (means of {len(segments)} still periods)',
+              file=sys.stderr)
+
+
 def _apply(args):
     from accelcal_ros.sensor.calibration_file import load_sensor_model
     from accelcal_ros.sensor.recording import save_recording
@@ -226,12 +240,15 @@ def _apply(args):
     if _writes_bag(args):
         return _apply_to_bag(args, model)
     t, accel_g = _read_recording_of(args)
+    _warn_if_calibration_misfits(model, t, accel_g)
     save_recording(args.output, t, model.correct(accel_g) * STANDARD_GRAVITY)
     print(f'wrote {len(t)} calibrated samples to {args.output}')
     return 0
 
 
 def _attitude(args):
+    import math
+
     from accelcal_ros.errors import InputError
     from accelcal_ros.fileio import write_text_atomic
     from accelcal_ros.sensor.calibration_file import load_calibration
@@ -253,14 +270,18 @@ def _attitude(args):
                               time_constant_s=args.time_constant_s,
                               accel_threshold_g=args.accel_threshold_g)
     t, accel_g = _read_recording_of(args)
+    if args.calibration:
+        _warn_if_calibration_misfits(model, t, accel_g)
     lines = ['t,roll_deg,pitch_deg,roll_std_deg,pitch_std_deg,accelerating']
-    for k, (ti, ai) in enumerate(zip(t, accel_g)):
+    deg = math.degrees
+    for k, (ti, ai) in enumerate(zip(t.tolist(), accel_g.tolist())):
         est = estimator.update(ti, ai)
         if k % args.every or est is None:
             continue
-        std = np.degrees(np.sqrt(np.diag(est.covariance)))
-        lines.append(f'{ti:.6f},{np.degrees(est.roll):.4f},{np.degrees(est.pitch):.4f},'
-                     f'{std[0]:.4f},{std[1]:.4f},{int(est.accelerating)}')
+        var_roll, _, var_pitch = est.cov
+        lines.append(f'{ti:.6f},{deg(est.roll):.4f},{deg(est.pitch):.4f},'
+                     f'{deg(math.sqrt(var_roll)):.4f},{deg(math.sqrt(var_pitch)):.4f},'
+                     f'{int(est.accelerating)}')
     text = '\n'.join(lines) + '\n'
     if args.output:
         write_text_atomic(args.output, text)

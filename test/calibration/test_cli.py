@@ -55,6 +55,31 @@ def test_calibrate_apply_attitude_plot(tmp_path, recording, capsys):
     assert abs(np.degrees(np.mean(np.radians(att[sel, 2]) - pitch[sel]))) < 0.05
     assert np.degrees(np.sqrt(np.mean(roll_err ** 2))) < 0.6
     assert np.all(np.isfinite(att))
+    assert 'does not fit' not in capsys.readouterr().err
+
+
+def test_a_mismatched_calibration_is_reported(tmp_path, recording, capsys):
+    """Another sensor's calibration (paper A's K = 100 set) on this recording: a warning."""
+    from accelcal_ros.sensor.calibration_file import save_calibration
+    from accelcal_ros.sensor.model import paper_a_model
+
+    path, sim, t, raw = recording
+    other = paper_a_model(100)
+
+    class Result:   # the fields save_calibration writes
+        model, sensor_model, positions, dropped = 'diagonal', other, 12, []
+        scale_std = bias_std = misalignment_std = np.zeros(3)
+        residual_rms_g, holdout_rms_g, condition_number = 0.001, None, 10.0
+        predicted_tilt_error_deg, captures_g, residuals_g = 0.1, [], []
+
+    calib = tmp_path / 'other.yaml'
+    save_calibration(calib, Result())
+    out = tmp_path / 'corrected.csv'
+    assert main(['apply', str(path), '--calibration', str(calib), '-o', str(out)]) == 0
+    err = capsys.readouterr().err
+    assert 'does not fit' in err and 'this sensor' in err
+    assert main(['attitude', str(path), '--calibration', str(calib)]) == 0
+    assert 'does not fit' in capsys.readouterr().err
 
 
 def test_plot_calibration_command(tmp_path, recording):
