@@ -47,6 +47,21 @@ EPILOG = ('Errors are printed as one line and exit with status 1 (2 for a bad co
           'No command writes over one of its input files.')
 
 
+def fit_package_calibrations(count: int, seed: int = 0) -> list:
+    """
+    Return the package's own K = 12 calibrations for the studies (``args.fit_calibrations``).
+
+    ``count`` independent LM fits of 12 recommended positions x 1 s at 100 Hz of the
+    simulated sensor (:func:`accelcal_ros.calibration.study.fitted_models`). The panorama
+    and P2P studies compare them with paper A's sets; they get this function from the
+    dispatcher because features never import each other.
+    """
+    from accelcal_ros.calibration.study import fitted_models
+
+    return list(fitted_models(positions=12, seconds_per_position=1.0, count=count, seed=seed,
+                              layout='recommended', model='full'))
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (status 2)."""
 
@@ -63,6 +78,7 @@ def build_parser():
         description='ADXL345 field calibration, attitude, panorama stitching, P2P '
                     'positioning and LiDAR-IMU boresight calibration on recorded data.',
         epilog=EPILOG)
+    parser.set_defaults(fit_calibrations=fit_package_calibrations)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     study = sub.add_parser('study', help='accuracy studies against ground truth and the papers')

@@ -249,11 +249,7 @@ def _study_main(args):
     geometry = study.StudyGeometry(elevation_deg=args.elevation_deg)
     own = None
     if args.package_count > 0:
-        try:
-            own = study.package_models(count=args.package_count, seed=args.seed)
-        except ImportError as exc:
-            print(f'note: the package calibration study is not available ({exc}); '
-                  'K=12 row skipped', file=sys.stderr)
+        own = args.fit_calibrations(count=args.package_count, seed=args.seed)
     result = study.run_study(args.trials, args.seed, geometry, own)
     sweep = None if args.no_sweep else study.elevation_sweep(
         trials=max(args.trials // 5, 1), seed=args.seed, geometry=geometry)

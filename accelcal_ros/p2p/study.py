@@ -46,7 +46,7 @@ cannot measure range at all and a small elevation magnifies tilt errors roughly 
 ``1 / tan(elevation)``; :func:`elevation_sweep` shows it.
 """
 from dataclasses import asdict, dataclass
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
@@ -196,19 +196,6 @@ def paper_models() -> Dict[str, SensorModel]:
     return {'K=500': paper_a_model(500),
             'K=300': SensorModel(np.array(PAPER_K300_SCALE), np.array(PAPER_K300_BIAS)),
             'K=100': SensorModel(np.array(PAPER_K100_SCALE), np.array(PAPER_K100_BIAS))}
-
-
-def package_models(count: int = 100, seed: int = 0) -> List[SensorModel]:
-    """
-    Return the package's own K = 12 calibrations (INTERFACES.md section 1).
-
-    ``accelcal_ros.calibration.study.fitted_models(positions=12, count=count)``: ``count``
-    independent LM fits of 12 recommended positions x 1 s at 100 Hz of the simulated sensor.
-    """
-    from accelcal_ros.calibration.study import fitted_models
-
-    return list(fitted_models(positions=12, seconds_per_position=1.0, count=count,
-                              seed=seed, layout='recommended', model='full'))
 
 
 def run_study(trials: int = 10000, seed: int = 0, geometry: 'StudyGeometry' = StudyGeometry(),

@@ -219,5 +219,6 @@ def _study(args):
 
     if args.count < 1:
         raise InputError('--count must be at least 1')
-    horizon_study.run(count=args.count, quick=args.quick, out_dir=args.out)
+    models = args.fit_calibrations(count=args.count) if args.count else None
+    horizon_study.run(count=args.count, quick=args.quick, out_dir=args.out, models=models)
     return 0

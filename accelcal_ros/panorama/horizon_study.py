@@ -88,7 +88,9 @@ def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = F
     """
     Run the study; print a readable table with ``say`` and return the figures as a dict.
 
-    ``models`` (a list of SensorModel) replaces the package's fitted calibrations (tests).
+    ``models`` (a list of SensorModel): the package's own calibrations for the last row
+    (``accelcal study horizon`` passes K = 12 fits from the calibration feature; the row is
+    left out when None).
     """
     from accelcal_ros.fileio import write_bytes_atomic
     from accelcal_ros.panorama.stitch import Stitcher
@@ -140,14 +142,6 @@ def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = F
             f'(rendered vs closed form within {agreement:.2f} px)')
     say('  the closed form gives delta_pitch x px/deg at the reference heading (az = 0); '
         'the paper measured its real rig by eye, over the horizon it could see')
-    if models is None:
-        try:
-            from accelcal_ros.calibration.study import fitted_models
-        except ImportError as exc:  # pragma: no cover - the calibration feature ships it
-            say(f'  own calibration: not available ({exc})')
-            models = []
-        else:
-            models = fitted_models(positions=12, seconds_per_position=1.0, count=count, seed=0)
     if models:
         roll_err, pitch_err = tilt_errors_after_calibration(models)
         deviations = np.array([np.max(np.abs(analytic_horizon_rows(
