@@ -143,6 +143,29 @@ def bench_boresight(trials):
               f'{np.mean(means):.4f} deg (paper B: 0.3); {np.mean(secs):.2f} s per calibration')
 
 
+def bench_box_room(trials):
+    """Boresight without a prior in an empty 8 m cube: resolved by the cues, or refused."""
+    from accelcal_ros.lidar.floor_assign import AmbiguousFloorError
+
+    print('\n== no prior in an empty 8 m cube (ceiling and walls as large as the floor) ==')
+    truth = sim.default_boresight()
+    for origin in ((0.3, 0.2, 3.0), (0.0, 0.0, 4.0)):
+        for order in ('xy', 'yx'):
+            outcome, secs = [], []
+            for seed in range(trials):
+                positions = sim.positions_for_calibration(sim.simulate_protocol(
+                    truth, room=sim.box_room(), seed=seed, scanner_origin=origin, order=order))
+                t = time.perf_counter()
+                try:
+                    res = calibrate_boresight(positions, None)
+                    outcome.append(f'{rotation_angle_deg(res.rotation, truth):.4f} deg')
+                except AmbiguousFloorError as exc:
+                    outcome.append(f'refused ({len(exc.candidates)} candidates)')
+                secs.append(time.perf_counter() - t)
+            print(f'scanner at {origin} m, tilts {order}: {", ".join(outcome)}; '
+                  f'{np.mean(secs):.1f} s per calibration')
+
+
 def bench_files():
     """PCD read/write speed per encoding (LZF in pure Python + numpy)."""
     print('\n== PCD files (one VLP-16 revolution, 28800 points, x y z intensity ring time) ==')
@@ -169,6 +192,7 @@ def main():
     bench_plane_fit(protocol, 1 if args.quick else 3)
     bench_georef(500_000 if args.quick else 2_000_000)
     bench_boresight(2 if args.quick else 5)
+    bench_box_room(1 if args.quick else 3)
     bench_files()
 
 

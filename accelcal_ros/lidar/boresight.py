@@ -109,19 +109,20 @@ class BoresightResult:
 
 def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
                         tolerance_deg=3.0, max_pair_error_deg=2.0,
-                        height_tolerance_m=0.3) -> 'BoresightResult':
+                        height_margin_m=0.1) -> 'BoresightResult':
     """
     Calibrate the boresight from :class:`StaticPosition` list; returns BoresightResult.
 
     ``prior`` (3x3, LiDAR -> IMU, the nominal mounting) guides the floor search (ceiling
     removal and gravity-guided MSAC). Without it every position's dominant planes are
     candidates and :func:`accelcal_ros.lidar.floor_assign.select_floor` picks the floor
-    consistent with one rotation (refusing when several assignments fit; floors more than
-    ``height_tolerance_m`` apart rule an assignment out); the floors are then searched again
-    with that rotation as the prior. Positions whose gravity directions leave an angle
-    undetermined are refused (:class:`UnconstrainedBoresightError`). A position without a
-    usable floor, or whose pair disagrees with the others by more than
-    ``max_pair_error_deg`` after a first solution, is dropped with the reason.
+    consistent with one rotation (refusing when several assignments fit; floor heights that
+    spread much more than the tightest assignment's, by ``height_margin_m`` at least, rule an
+    assignment out); the floors are then searched again with that rotation as the prior.
+    Positions whose gravity directions leave an angle undetermined are refused
+    (:class:`UnconstrainedBoresightError`). A position without a usable floor, or whose pair
+    disagrees with the others by more than ``max_pair_error_deg`` after a first solution, is
+    dropped with the reason.
     """
     search = search or FloorSearch()
     notes = calibration_fit_warnings(positions)
@@ -146,7 +147,7 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
         check_constrained([p.gravity_m_s2 for p, _ in valid], [p.name for p, _ in valid])
         cands = [PlaneSet.from_planes(find_planes(pts, search)) for _, pts in valid]
         prior, choice, floor_notes = select_floor(cands, [p.gravity_m_s2 for p, _ in valid],
-                                                  tolerance_deg, height_tolerance_m,
+                                                  tolerance_deg, height_margin_m,
                                                   max_tilt_deg=search.max_tilt_deg)
         notes += floor_notes
         for (pos, _), c in zip(valid, choice):

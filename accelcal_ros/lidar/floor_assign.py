@@ -13,16 +13,18 @@ truth's.
 
 :func:`floor_candidates` finds every rotation that fits within the noise: hypotheses from
 two positions and one plane each (Wahba), scored MSAC-style over all positions, clustered,
-refined (per position the plane within ``tolerance_deg`` that lies furthest below the
-scanner, so a table top never wins over the floor under it) and kept when they explain
+refined (per position, among the planes within ``tolerance_deg`` of up, the largest of
+those lying within ``FLOOR_BAND_M`` of the lowest, so a table top never wins over the floor
+under it and a small patch never over the floor it belongs to) and kept when they explain
 about as many positions, as tightly, as the best and constrain all three angles.
 :func:`select_floor` then applies the physical cues:
 
 - **gravity side**: the chosen plane lies on the side the specific force points away from
   (the normal towards the scanner is carried onto ``f``), built into the assignment;
 - **one floor height**: on a fixed base the floor is at the same distance below the scanner
-  at every position; an assignment whose "floor" distances spread by more than
-  ``height_tolerance_m`` (and 3 times the tightest candidate's spread) is ruled out;
+  at every position; an assignment whose "floor" distances spread (largest deviation from
+  their median) more than 3 times the tightest candidate's and by ``height_margin_m`` more
+  is ruled out;
 - **ceiling smaller**: a ceiling is usually cropped or seen with fewer points than the
   floor. A position where an assignment's "ceiling" (the plane facing its floor) holds
   ``size_ratio`` times more points than its "floor" counts against it; an assignment with
@@ -40,6 +42,10 @@ from accelcal_ros.frames import rpy_radians_from_rotation
 from accelcal_ros.lidar.wahba import (_unit, constraint_eigen, MIN_CONSTRAINT_EIGENVALUE,
                                       pair_errors_deg, rotation_angle_deg, solve_wahba)
 import numpy as np
+
+
+FLOOR_BAND_M = 0.15
+"""Planes facing up within this of the lowest one are taken as pieces of the floor (m)."""
 
 
 class AmbiguousFloorError(CalibrationError):
@@ -108,16 +114,22 @@ class FloorCandidate:
                 f'{self.heights_m.max():.2f} m below the scanner)')
 
 
+def _floor_side(rotation, ps, f_i, tol_deg, sign=1.0):
+    """Return the indices of the planes whose normal (times ``sign``) is within tol of up."""
+    if not len(ps.normals):
+        return np.zeros(0, dtype=int)
+    up = np.repeat(f_i[None], len(ps.normals), 0)
+    return np.flatnonzero(pair_errors_deg(rotation, sign * ps.normals, up) <= tol_deg)
+
+
 def _choose(rotation, planes, f, tol_deg):
-    """Return per position the plane within ``tol_deg`` of ``f`` lying furthest below."""
+    """Return per position the floor: the largest plane near the lowest one facing up."""
     choice = np.full(len(planes), -1)
     for i, ps in enumerate(planes):
-        if not len(ps.normals):
-            continue
-        err = pair_errors_deg(rotation, ps.normals, np.repeat(f[i:i + 1], len(ps.normals), 0))
-        ok = np.flatnonzero(err <= tol_deg)
+        ok = _floor_side(rotation, ps, f[i], tol_deg)
         if ok.size:
-            choice[i] = ok[np.argmax(ps.offsets_m[ok])]
+            low = ok[ps.offsets_m[ok] >= ps.offsets_m[ok].max() - FLOOR_BAND_M]
+            choice[i] = low[np.argmax(ps.inliers[low])]
     return choice
 
 
@@ -220,19 +232,19 @@ def floor_candidates(planes: Sequence[PlaneSet], gravity, tolerance_deg: float =
 
 
 def _smaller_floor_at(cand, planes, f, tol_deg, size_ratio):
-    """Return the positions where the plane facing the floor holds ``size_ratio`` x its points."""
+    """Return the positions where the planes facing the floor hold ``size_ratio`` x its."""
     out = []
     for i in cand.positions:
         ps = planes[i]
-        up = np.repeat(f[i:i + 1], len(ps.normals), 0)
-        facing = np.flatnonzero(pair_errors_deg(cand.rotation, -ps.normals, up) <= tol_deg)
-        if facing.size and ps.inliers[facing].max() >= size_ratio * ps.inliers[cand.choice[i]]:
+        floor = _floor_side(cand.rotation, ps, f[i], tol_deg)
+        facing = _floor_side(cand.rotation, ps, f[i], tol_deg, -1.0)
+        if facing.size and ps.inliers[facing].sum() >= size_ratio * ps.inliers[floor].sum():
             out.append(int(i))
     return out
 
 
 def select_floor(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0,
-                 height_tolerance_m: float = 0.3, size_ratio: float = 2.0,
+                 height_margin_m: float = 0.1, size_ratio: float = 2.0,
                  max_tilt_deg: float = 15.0) -> Tuple[np.ndarray, np.ndarray, List[str]]:
     """
     Return ``(R, choice, notes)``: the one assignment the cues leave, or raise.
@@ -245,7 +257,7 @@ def select_floor(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0
     cands = floor_candidates(planes, f, tolerance_deg)
     if len(cands) > 1:
         tightest = min(c.height_spread_m for c in cands)
-        limit = max(height_tolerance_m, 3 * tightest)
+        limit = max(3 * tightest, tightest + height_margin_m)
         for c in cands:
             if c.height_spread_m > limit:
                 c.ruled_out = (f'its floor would be {c.heights_m.min():.2f}-'
