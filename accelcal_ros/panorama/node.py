@@ -25,8 +25,11 @@ Which frames form a set (stamps within ``sync_tolerance_s``, stalled cameras, wa
 for the attitude, time jumps) is :class:`~.frame_sets.FrameSetPolicy`; its one thread
 (:class:`~.frame_sets.FrameSetWorker`) hands each set to
 :class:`~.pipeline.PipelinedStitcher`, whose render thread remaps and publishes while
-the next set's lookup is rebuilt. ``imu_to_camera`` comes from the rig file when it has
-one; the parameter, when given, overrides it.
+the next set's lookup is rebuilt. A stamp that jumps by more than
+``time_jump_threshold_s`` against the wall time (a bag replayed in a loop, a clock set)
+resets the policy, with a log line and the count in ``/diagnostics``.
+``imu_to_camera`` comes from the rig file when it has one; the parameter, when given,
+overrides it.
 """
 import time
 
@@ -88,7 +91,7 @@ class StitcherNode(Node):
         self._sizes = [(c.width, c.height) for c in self.rig.cameras]
         self.policy = FrameSetPolicy(
             [f'{c.name} ({t})' for c, t in zip(self.rig.cameras, topics)], self.params,
-            log=self._log)
+            log=self._log, jump_threshold_s=v['time_jump_threshold_s'])
         self._published = 0
         self._publish_times = []
         self._latency_s = float('nan')

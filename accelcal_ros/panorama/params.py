@@ -64,6 +64,11 @@ STITCHER_PARAMS = [
     ParamSpec('stale_timeout_s', 1.0, 'a camera silent for longer is stalled: its sector '
               'stays black and /diagnostics reports it', minimum=0.05, maximum=60.0,
               unit='s'),
+    ParamSpec('time_jump_threshold_s', 2.0, 'a stream whose stamp moves this much more (or '
+              'less) than the wall time since its previous message has jumped (a bag '
+              'replayed in a loop, a clock set): buffered frames are dropped and stitching '
+              'starts again, logged and counted in /diagnostics', minimum=0.1,
+              maximum=3600.0, unit='s', read_only=True),
     ParamSpec('rebuild_threshold_deg', 0.01, 'the lookup is rebuilt when the tilt moves by '
               'more than this', minimum=0.0, maximum=10.0, unit='deg'),
     ParamSpec('grid_step', 20, 'cell size of the fast lookup rebuild (even; the largest '
