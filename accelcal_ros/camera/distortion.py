@@ -26,7 +26,7 @@ The inverses run Newton's method from the distorted point (at most ``iterations`
 steps, fewer once every residual is below :data:`CONVERGED`), exact to about 1e-12 for
 real lenses within their frame.
 """
-from typing import Sequence, Tuple
+from typing import Any, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -42,9 +42,11 @@ CONVERGED = 1e-15
 """Newton stops early once every residual (normalised units) is at most this."""
 
 Array = np.ndarray
+Coefficients = Union[Sequence[Any], np.ndarray]
+"""Distortion coefficients: numbers, or arrays broadcasting with the points."""
 
 
-def distort_normalized(x: Array, y: Array, distortion: Sequence,
+def distort_normalized(x: Array, y: Array, distortion: Coefficients,
                        model: str = PLUMB_BOB) -> Tuple[Array, Array]:
     """
     Apply the lens model to undistorted normalised coordinates; return ``(xd, yd)``.
@@ -70,7 +72,7 @@ def distort_normalized(x: Array, y: Array, distortion: Sequence,
     return xd, yd
 
 
-def undistort_normalized(xd: Array, yd: Array, distortion: Sequence,
+def undistort_normalized(xd: Array, yd: Array, distortion: Coefficients,
                          model: str = PLUMB_BOB,
                          iterations: int = 10) -> Tuple[Array, Array]:
     """
@@ -118,7 +120,7 @@ def undistort_normalized(xd: Array, yd: Array, distortion: Sequence,
     return x, y
 
 
-def _distort_equidistant(x: Array, y: Array, distortion: Sequence) -> Tuple[Array, Array]:
+def _distort_equidistant(x: Array, y: Array, distortion: Coefficients) -> Tuple[Array, Array]:
     """Fisheye (``cv2.fisheye``) model of normalised coordinates; see the module text."""
     k1, k2, k3, k4 = distortion
     r = np.sqrt(x * x + y * y)
@@ -130,14 +132,14 @@ def _distort_equidistant(x: Array, y: Array, distortion: Sequence) -> Tuple[Arra
     return x * scale, y * scale
 
 
-def distort_equidistant_angle(theta: Array, distortion: Sequence) -> Array:
+def distort_equidistant_angle(theta: Array, distortion: Coefficients) -> Array:
     """Return the fisheye model's distorted radius ``theta_d`` of off-axis angles (rad)."""
     k1, k2, k3, k4 = distortion
     t2 = theta * theta
     return theta * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
 
 
-def undistort_equidistant_angle(xd: Array, yd: Array, distortion: Sequence,
+def undistort_equidistant_angle(xd: Array, yd: Array, distortion: Coefficients,
                                 iterations: int = 10) -> Tuple[Array, Array, Array]:
     """
     Return ``(theta, cos_az, sin_az)`` of distorted fisheye coordinates.

@@ -19,7 +19,7 @@ row-major), ``D`` and ``distortion_model``. :func:`camera_model_from_mapping` al
 the ROS calibration YAML of ``camera_calibration_parsers`` (``image_width``,
 ``camera_matrix: {data: [...]}``, ``distortion_coefficients``...).
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
@@ -34,9 +34,9 @@ MAX_SIDE_PX = 100000
 """Largest image width or height accepted (pixels)."""
 
 
-def _coefficients(d: Sequence, model: str, where: str) -> Tuple[np.ndarray, str]:
+def _coefficients(values: Any, model: str, where: str) -> Tuple[np.ndarray, str]:
     """Return the coefficients padded to the model's count, and the model name."""
-    d = np.asarray(d, dtype=float).reshape(-1)
+    d = np.asarray(values, dtype=float).reshape(-1)
     if not np.all(np.isfinite(d)):
         raise InputError(f'{where}D contains NaN or infinity')
     model = model or PLUMB_BOB
@@ -110,7 +110,7 @@ class CameraModel:
     width: int
     height: int
     K: np.ndarray
-    D: np.ndarray = ()
+    D: np.ndarray = field(default_factory=lambda: np.zeros(0))
     distortion_model: str = PLUMB_BOB
 
     def __post_init__(self) -> None:
@@ -138,7 +138,8 @@ class CameraModel:
         f = 0.5 * width / math.tan(math.radians(fov_h_deg) / 2.0)
         k = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0],
                       [0.0, 0.0, 1.0]])
-        return cls(int(width), int(height), k, () if dist_coeffs is None else dist_coeffs,
+        return cls(int(width), int(height), k,
+                   np.zeros(0) if dist_coeffs is None else np.asarray(dist_coeffs, dtype=float),
                    distortion_model)
 
     @classmethod
@@ -308,8 +309,8 @@ def camera_model_from_mapping(entry: Mapping, where: str = 'camera') -> CameraMo
     width = _side(entry[keys[0]], keys[0], prefix, False)
     height = _side(entry[keys[1]], keys[1], prefix, False)
     k = _camera_matrix(_numbers(entry[keys[2]], prefix, keys[2]), prefix)
-    d = entry.get(keys[3])
-    d = np.zeros(0) if d is None else _numbers(d, prefix, keys[3])
+    d_entry = entry.get(keys[3])
+    d = np.zeros(0) if d_entry is None else _numbers(d_entry, prefix, keys[3])
     model = entry.get('distortion_model', PLUMB_BOB)
     if not isinstance(model, str):
         raise InputError(f'{prefix}distortion_model must be one of '

@@ -59,7 +59,7 @@ class RigCamera:
     def __init__(self, name: str, width: int, height: int, K: np.ndarray,
                  D: Sequence[float] = (), R: Optional[np.ndarray] = None,
                  distortion_model: str = PLUMB_BOB) -> None:
-        model = CameraModel(width, height, K, D, distortion_model)
+        model = CameraModel(width, height, K, np.asarray(D, dtype=float), distortion_model)
         self._set(name, model, np.eye(3) if R is None else R)
 
     def _set(self, name: str, model: CameraModel, r: np.ndarray) -> None:
@@ -241,7 +241,7 @@ def rig_to_mapping(rig: Rig) -> Dict[str, Any]:
     """Return the YAML-ready mapping of a rig (inverse of :func:`rig_from_mapping`)."""
     cams = []
     for cam in rig.cameras:
-        entry = {'name': cam.name}
+        entry: Dict[str, Any] = {'name': cam.name}
         entry.update(cam.model.to_mapping())
         if entry['distortion_model'] == PLUMB_BOB:
             del entry['distortion_model']
