@@ -82,7 +82,8 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
             continue
         scans = [convert.cloud_array(item[2].msg) for item in sorted(heap, key=lambda x: x[1])]
         pts = np.concatenate([xyz(c) if len(c) else np.zeros((0, 3)) for c in scans])
-        positions.append(StaticPosition(name, pts, seg.gravity_m_s2, seg.direction_std_rad()))
+        positions.append(StaticPosition(name, pts, seg.gravity_m_s2, seg.direction_std_rad(),
+                                        calibrated=model is not None))
         spans.append(f'{name}: still {span} into {imu.topic}, {len(scans)} scan(s), '
                      f'{len(pts)} points')
     if outside:
