@@ -44,7 +44,7 @@ def scene(width, height):
 
 def main():
     """Run the benchmark and print the figures."""
-    from accelcal_ros.demo.graph import NodeProcess
+    from graph_harness.graph import NodeProcess
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--duration', type=float, default=10.0, help='seconds measured')

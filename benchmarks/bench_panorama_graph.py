@@ -245,7 +245,7 @@ def isolated_domain():
     """Give this run its own ROS domain (localhost only); returns the holder."""
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     try:
-        from accelcal_ros.demo.domain import allocate_domain_id
+        from graph_harness.domain import allocate_domain_id
     except ImportError:
         return None
     holder = allocate_domain_id()
@@ -279,7 +279,7 @@ def run_graph(publisher_options, phases, duration, warmup):
 
 def graph_config(config, duration, warmup, workdir):
     """Measure one ``NxWxH@RATE`` configuration; returns the results by phase."""
-    from accelcal_ros.demo.graph import NodeProcess
+    from graph_harness.graph import NodeProcess
     from accelcal_ros.panorama.rig import ring_rig, save_rig
 
     count, size = config.split('x', 1)
