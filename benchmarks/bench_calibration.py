@@ -56,7 +56,7 @@ def bench_fit(repeat):
 
 def bench_attitude(rate, seconds):
     """Print latency and CPU of the attitude node at ``rate`` Hz input."""
-    from accelcal_ros.demo.graph import Graph
+    from graph_harness.graph import Graph
     from accelcal_ros.rosutil.stamps import stamp_to_seconds
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy

@@ -21,7 +21,7 @@ import argparse
 import os
 import time
 
-from accelcal_ros.demo.graph import Graph
+from graph_harness.graph import Graph
 import numpy as np
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu

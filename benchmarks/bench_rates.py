@@ -221,7 +221,7 @@ def measure(probe, rate, consumer, executor, seconds, warmup_s, log_dir):
 
 def _domain_id():
     try:
-        from accelcal_ros.demo.domain import allocate_domain_id
+        from graph_harness.domain import allocate_domain_id
     except ImportError:
         return random.randint(60, 100)
     return allocate_domain_id().domain_id

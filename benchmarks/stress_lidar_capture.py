@@ -20,18 +20,18 @@ import tempfile
 import threading
 import time
 
-from accelcal_ros.demo.domain import allocate_domain_id
+from graph_harness.domain import allocate_domain_id
 
 if 'ROS_DOMAIN_ID' not in os.environ:
     _LEASE = allocate_domain_id()
     os.environ['ROS_DOMAIN_ID'] = str(_LEASE.domain_id)
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
-from accelcal_ros.demo.graph import Graph  # noqa: E402 (after the domain is chosen)
-from accelcal_ros.demo.lidar_stage import (  # noqa: E402
-    drive_static_positions, PACKETS_PER_REVOLUTION)
-from accelcal_ros.lidar import scanner_sim as sim  # noqa: E402
+from accelcal_ros.lidar import scanner_sim as sim  # noqa: E402, I100 (after the domain is chosen)
 from accelcal_ros.lidar.boresight import load_boresight, rotation_angle_deg  # noqa: E402
+from accelcal_ros.lidar.scanner_sim_ros import (  # noqa: E402
+    drive_static_positions, PACKETS_PER_REVOLUTION)
+from graph_harness.graph import Graph  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 import yaml  # noqa: E402
 
@@ -64,7 +64,7 @@ def trial(args, log_dir):
                 time.sleep(args.stop_s)
                 os.kill(pid, signal.SIGCONT)
             threading.Thread(target=freeze, daemon=True).start()
-        drive_static_positions(graph, protocol, PICKS, move_s=0.5, still_s=2.4, imu_hz=50.0)
+        drive_static_positions(graph.node, protocol, PICKS, move_s=0.5, still_s=2.4, imu_hz=50.0)
         for hog in hogs:
             hog.kill()
         time.sleep(args.stop_s + 1.0)

@@ -3,12 +3,12 @@ Shared pytest fixtures.
 
 Every test session gets its own ``ROS_DOMAIN_ID`` (allocated with a lock file so
 concurrent runs on one machine never share a domain) and localhost-only discovery, set
-before anything initialises rclpy. Graph tests use :class:`accelcal_ros.demo.graph.Graph` to start
+before anything initialises rclpy. Graph tests use :class:`graph_harness.graph.Graph` to start
 the installed node executables as separate processes and talk to them with rclpy.
 """
 import os
 
-from accelcal_ros.demo.domain import allocate_domain_id
+from graph_harness.domain import allocate_domain_id
 import pytest
 
 _DOMAIN = allocate_domain_id()
@@ -27,10 +27,10 @@ def graph(tmp_path):
     """
     Start a probe node in a fresh rclpy context, plus a launcher for installed nodes.
 
-    Yields :class:`accelcal_ros.demo.graph.Graph`; every process it started is stopped
+    Yields :class:`graph_harness.graph.Graph`; every process it started is stopped
     afterwards.
     """
-    from accelcal_ros.demo.graph import Graph
+    from graph_harness.graph import Graph
 
     g = Graph(log_dir=tmp_path, name='test_probe')
     try:

@@ -1,4 +1,8 @@
-"""The pure core never imports rclpy or ROS message packages; only node modules do."""
+"""
+The pure core never imports rclpy or ROS message packages.
+
+Only node modules, ``rosutil/``, the demo and ``*_ros.py`` adapters beside a simulator do.
+"""
 import ast
 import os
 
@@ -11,7 +15,7 @@ ROS_MODULES = ('rclpy', 'rcl_interfaces', 'std_msgs', 'std_srvs', 'sensor_msgs',
 
 def _is_ros_side(rel):
     base = os.path.basename(rel)
-    return (base == 'node.py' or base.endswith('_node.py')
+    return (base == 'node.py' or base.endswith(('_node.py', '_ros.py'))
             or rel.startswith('rosutil' + os.sep) or rel.startswith('demo' + os.sep))
 
 

@@ -16,5 +16,9 @@ export ACCELCAL_INSTALL="$_install"
 # the node executables and `accelcal` (ament_python installs them in lib/<package>)
 case ":$PATH:" in *":$_install/accelcal_ros/lib/accelcal_ros:"*) ;;
   *) export PATH="$_install/accelcal_ros/lib/accelcal_ros:$PATH" ;; esac
+# the graph harness of the tests (test/graph_harness, not installed): the demo and the
+# benchmarks drive node processes with it
+case ":${PYTHONPATH:-}:" in *":$_accelcal_root/test:"*) ;;
+  *) export PYTHONPATH="$_accelcal_root/test${PYTHONPATH:+:$PYTHONPATH}" ;; esac
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 unset _accelcal_root _venv _install _nounset

@@ -13,7 +13,7 @@ import os
 import sys
 import time
 
-from accelcal_ros.demo.domain import allocate_domain_id
+from graph_harness.domain import allocate_domain_id
 
 STAGES = ('driver', 'calibration', 'panorama', 'p2p', 'lidar')
 
@@ -59,7 +59,7 @@ def main(argv=None):
           'watch, e.g. ros2 topic echo /attitude); outputs in '
           f'{os.path.abspath(args.out)}', flush=True)
     os.makedirs(args.out, exist_ok=True)
-    from accelcal_ros.demo.graph import Graph
+    from graph_harness.graph import Graph
 
     failed = []
     for stage in stages:

@@ -11,7 +11,6 @@ If ``attitude`` is not installed, ``sim/attitude_truth`` is remapped to ``attitu
 """
 import time
 
-from accelcal_ros.demo.graph import executable
 from accelcal_ros.p2p import render
 from accelcal_ros.p2p.solver import yaw_from_rotation
 from accelcal_ros.rosutil.images import array_to_image_msg
@@ -19,6 +18,7 @@ from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
+from graph_harness.graph import executable
 import numpy as np
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image

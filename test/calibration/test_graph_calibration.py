@@ -2,7 +2,7 @@
 import time
 
 from accelcal_ros.calibration.coverage import recommended_directions, roll_pitch_deg_of
-from accelcal_ros.demo.calibration_stage import dwell_errors_deg
+from accelcal_ros.driver.sim_truth import dwell_errors_deg
 from accelcal_ros.sensor.calibration_file import load_calibration
 import numpy as np
 import pytest

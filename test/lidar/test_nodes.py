@@ -1,12 +1,12 @@
 """Graph tests: ``lidar_calibration`` and ``cloud_assembler`` as processes in a ROS graph."""
 import time
 
-from accelcal_ros.demo.lidar_stage import (drive_moving_platform, drive_static_positions,
-                                           finish_calibration, PACKETS_PER_REVOLUTION)
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
 from accelcal_ros.lidar.boresight import load_boresight, rotation_angle_deg
 from accelcal_ros.lidar.ply import read_ply
+from accelcal_ros.lidar.scanner_sim_ros import (drive_moving_platform, drive_static_positions,
+                                                finish_calibration, PACKETS_PER_REVOLUTION)
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 import numpy as np
 import pytest
@@ -26,9 +26,9 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
         'clouds_per_capture': PACKETS_PER_REVOLUTION})
     early = graph.call(Trigger, 'lidar_calibration/finish', timeout=20.0)
     assert not early.success and 'positions captured' in early.message
-    drive_static_positions(graph, protocol, [1, 2, 5, 7, 12], move_s=0.5, still_s=2.4,
+    drive_static_positions(graph.node, protocol, [1, 2, 5, 7, 12], move_s=0.5, still_s=2.4,
                            imu_hz=50.0)
-    response = finish_calibration(graph)  # asks again while the node works off a backlog
+    response = finish_calibration(graph.call)  # asks again while the node works off a backlog
     assert response.success, response.message + proc.output()
     data = load_yaml_mapping(out)
     assert len(data['positions']) >= 3 and len(data['R']) == 9
@@ -49,7 +49,7 @@ def test_cloud_assembler_node_georeferences_and_saves(graph, tmp_path):
                                            scene.lever_arm_m.tolist(), 'output_file': str(ply),
                                            'queue_depth': 50})
     collector = graph.collect(PointCloud2, 'points_georef', 50)
-    sent = drive_moving_platform(graph, scene, pace=0.5)  # best effort, as most drivers do
+    sent = drive_moving_platform(graph.node, scene, pace=0.5)  # best effort, as most drivers do
     deadline = time.monotonic() + 15.0
     while len(collector.snapshot()[0]) < sent and time.monotonic() < deadline:
         time.sleep(0.1)
