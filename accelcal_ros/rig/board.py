@@ -44,7 +44,7 @@ class Board:
 
     @property
     def count(self) -> int:
-        """Number of inner corners."""
+        """Return the number of inner corners."""
         return self.cols * self.rows
 
     def object_points(self) -> np.ndarray:

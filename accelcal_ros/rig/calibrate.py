@@ -51,12 +51,12 @@ class RigCalibration:
 
     @property
     def K(self) -> List[np.ndarray]:
-        """Final camera matrices (after the joint fit)."""
+        """Return the final camera matrices (after the joint fit)."""
         return [lens[0] for lens in self.fit.lenses]
 
     @property
     def D(self) -> List[np.ndarray]:
-        """Final distortion coefficients (after the joint fit)."""
+        """Return the final distortion coefficients (after the joint fit)."""
         return [lens[1] for lens in self.fit.lenses]
 
 

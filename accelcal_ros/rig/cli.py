@@ -1,9 +1,7 @@
-"""
-Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``.
-"""
+"""Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``."""
 
 
-def register(subparsers, study_subparsers) -> None:
+def register(subparsers: object, study_subparsers: object) -> None:
     """Add the rig subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
         'rig-calibrate', help='camera intrinsics, rig rotations R_0i and imu_to_camera',
@@ -17,7 +15,7 @@ def register(subparsers, study_subparsers) -> None:
     p.add_argument('--square-m', required=True, type=float, help='square side (m)')
     p.add_argument('-o', '--output', required=True, help='rig file (YAML) to write')
     p.add_argument('--intrinsics', nargs='+', default=[], metavar='FILE',
-                   help="camera_info YAML files (ROS camera_calibration) held fixed; matched "
+                   help='camera_info YAML files (ROS camera_calibration) held fixed; matched '
                         'to cameras by camera_name or file name')
     p.add_argument('--calibration', metavar='FILE',
                    help='accelerometer calibration file (accelcal calibrate) applied to the '
@@ -37,7 +35,7 @@ def register(subparsers, study_subparsers) -> None:
     s.set_defaults(handler=_study)
 
 
-def _calibrate(args) -> int:
+def _calibrate(args: object) -> int:
     from accelcal_ros.rig.board import Board, parse_board_size
     from accelcal_ros.rig.calibrate import calibrate_directory
     from accelcal_ros.rig.report import report_lines, write_outputs
@@ -58,7 +56,7 @@ def _calibrate(args) -> int:
     return 0
 
 
-def _study(args) -> int:
+def _study(args: object) -> int:
     from accelcal_ros.rig.study import run_study
 
     for line in run_study(args.poses, args.seed):

@@ -90,8 +90,8 @@ def check_size(dataset: Dataset, camera: str, pose: str, image: np.ndarray) -> N
 
 
 def pose_gravity(path: str, model: object = None,
-                 thresholds: Optional[StillnessThresholds] = None) -> Tuple[Optional[np.ndarray],
-                                                                             str]:
+                 thresholds: Optional[StillnessThresholds] = None
+                 ) -> Tuple[Optional[np.ndarray], str]:
     """
     Return ``(mean specific force (m/s^2, IMU frame), '')`` of a still log, or ``(None, why)``.
 

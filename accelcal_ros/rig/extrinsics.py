@@ -10,7 +10,8 @@ t_0i)`` (its ``K_i``, ``D_i`` held fixed) and
 
 is solved by ``scipy.optimize.least_squares`` (Levenberg-Marquardt) over every board
 pose and every non-reference camera's ``(R_0i, t_0i)`` at once; the Jacobian is taken
-by central differences, grouped since a view depends on its pose and camera only. Rotations are updated on the right,
+by central differences, grouped since a view depends on its pose and camera only.
+Rotations are updated on the right,
 ``R = R_init exp([d]_x)``, so ``d`` of ``R_0i`` is a small rotation about the reference
 camera's own x (right), y (down), z (forward) axes.
 
@@ -215,7 +216,8 @@ def fit_rig(observations: Dict[View, np.ndarray], object_points: np.ndarray,
 
     ``intrinsics[i] = (K_i, D_i)`` start values; those of cameras flagged in
     ``free_intrinsics`` (``fx, fy, cx, cy, k1, k2, p1, p2``) are refined with the rest
-    (bundle adjustment), the others held (e.g. read from a camera_info file). Views whose RMS after the fit exceeds
+    (bundle adjustment), the others held (e.g. read from a camera_info file). Views
+    whose RMS after the fit exceeds
     ``max(max_view_rms_px, drop_factor x median)`` are dropped with the reason and the
     problem is solved again. Raises :class:`CalibrationError` when a camera cannot be
     linked to the reference.

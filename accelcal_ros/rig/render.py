@@ -79,7 +79,7 @@ class RigTruth:
 
 @dataclass
 class PoseTruth:
-    """One still pose: IMU attitude ``R_wi`` (IMU -> world), position (m) and who sees the board."""
+    """One still pose: IMU attitude ``R_wi`` (IMU -> world), position (m), who sees the board."""
 
     R_wi: np.ndarray
     position_m: np.ndarray
@@ -87,7 +87,7 @@ class PoseTruth:
 
     @property
     def specific_force(self) -> np.ndarray:
-        """Unit specific force in the IMU frame (REP-145: up)."""
+        """Return the unit specific force in the IMU frame (REP-145: up)."""
         return self.R_wi[2].copy()
 
 
@@ -128,8 +128,8 @@ def default_truth(tilt_deg: float = 0.4, seed: int = 0, width: int = 800, height
                     board or Board(11, 8, 0.025), tilt_deg)
 
 
-def board_in_camera(truth: RigTruth, pose: PoseTruth, index: int) -> Tuple[np.ndarray,
-                                                                            np.ndarray]:
+def board_in_camera(truth: RigTruth, pose: PoseTruth,
+                    index: int) -> Tuple[np.ndarray, np.ndarray]:
     """Return ``(R_cb, t_cb)``: board frame -> camera ``index`` optical frame (m)."""
     r_ci = truth.camera_rotation(index)
     r_cw = r_ci @ pose.R_wi.T
@@ -170,7 +170,7 @@ def _undistort(pixels: np.ndarray, k: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 def sees_board(truth: RigTruth, pose: PoseTruth, index: int, margin_px: float = 4.0,
                max_view_angle_deg: float = 65.0) -> bool:
-    """True if camera ``index`` sees the whole printed board (with its margin) at a fair angle."""
+    """Return True if camera ``index`` sees the whole printed board at a fair angle."""
     r_cb, t_cb = board_in_camera(truth, pose, index)
     pts = truth.board.outline_points(0.7) @ r_cb.T + t_cb
     if np.any(pts[:, 2] < 0.05):

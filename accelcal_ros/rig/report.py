@@ -26,7 +26,7 @@ def _floats(values, digits: int = 9) -> list:
 
 
 def rig_of(result: RigCalibration) -> Rig:
-    """The calibrated rig (:class:`accelcal_ros.camera.rig.Rig`) with its ``imu_to_camera``."""
+    """Return the calibrated rig (:class:`~accelcal_ros.camera.rig.Rig`), ``imu_to_camera`` too."""
     cams = []
     for i, name in enumerate(result.cameras):
         w, h = result.sizes[i]
@@ -44,7 +44,7 @@ def _axis_deg(r: np.ndarray) -> list:
 
 
 def report_mapping(result: RigCalibration) -> dict:
-    """The report's mapping."""
+    """Return the report's mapping."""
     fit = result.fit
     cameras = {}
     for i, name in enumerate(result.cameras):
@@ -99,7 +99,7 @@ def report_mapping(result: RigCalibration) -> dict:
 
 
 def report_lines(result: RigCalibration) -> List[str]:
-    """A short human summary."""
+    """Return a short human summary, one string per line."""
     fit = result.fit
     lines = [f'rig calibration: {len(result.cameras)} cameras, reference {result.cameras[0]}, '
              f'rig fit RMS {fit.rms_px:.3f} px ({fit.fit_time_s:.2f} s)']
@@ -139,8 +139,10 @@ def write_outputs(path: str, result: RigCalibration) -> List[str]:
 
 def plot(path: str, result: RigCalibration) -> None:
     """
-    Draw one PNG: per camera the corners used (coverage) coloured by view error, the rig
-    seen from above, and per pose the gravity error of ``imu_to_camera``.
+    Draw one PNG of the calibration.
+
+    Per camera the corners used (coverage) coloured by view error, the rig seen from
+    above, and per pose the gravity error of ``imu_to_camera``.
     """
     import matplotlib
 

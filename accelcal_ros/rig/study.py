@@ -10,13 +10,14 @@ import tempfile
 import time
 from typing import List, Sequence
 
-from accelcal_ros.rig.calibrate import calibrate_directory
+from accelcal_ros.rig.calibrate import calibrate_directory, RigCalibration
 from accelcal_ros.rig.extrinsics import rotation_angle_deg
-from accelcal_ros.rig.render import default_truth, plan_poses, Renderer, write_dataset
+from accelcal_ros.rig.render import (default_truth, plan_poses, Renderer, RigTruth,
+                                     write_dataset)
 import numpy as np
 
 
-def errors(result, truth) -> dict:
+def errors(result: RigCalibration, truth: RigTruth) -> dict:
     """Errors of a calibration against the truth: focal %, principal point px, angles deg."""
     focal = [100 * abs(result.K[i][j, j] / truth.K[i][j, j] - 1) for i in range(3)
              for j in range(2)]

@@ -7,9 +7,9 @@ The ring (:func:`accelcal_ros.rig.render.default_truth`): 800x600 cameras at 0 a
 """
 import os
 
+from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.cli import main
 from accelcal_ros.fileio import load_yaml_mapping
-from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.rig.extrinsics import rotation_angle_deg
 from accelcal_ros.rig.render import default_truth, plan_poses, write_dataset
 import numpy as np

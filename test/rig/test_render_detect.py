@@ -11,7 +11,7 @@ import pytest
 
 @pytest.fixture(scope='module')
 def scene():
-    """A rendered ring and a few poses (single and shared views)."""
+    """Return a rendered ring, a few poses (single and shared views) and a renderer."""
     truth = default_truth()
     return truth, plan_poses(truth, 5), Renderer(truth)
 
