@@ -40,12 +40,12 @@ class Feeder:
             if cameras is not None and i not in cameras:
                 continue
             image = self.views[i]
-            if encoding == '16UC1':
-                image = image[:, :, 0]
+            if encoding != 'bgr8':               # one-channel data: 16UC1 (refused), Bayer
+                image = image[:, :, 0].copy()
             header = Image().header
             header.stamp = seconds_to_stamp(now, Time)
-            msg = array_to_image_msg(image if encoding != '16UC1' else image.copy(),
-                                     'bgr8' if encoding == 'bgr8' else 'mono8', Image, header)
+            msg = array_to_image_msg(image, 'bgr8' if encoding == 'bgr8' else 'mono8', Image,
+                                     header)
             msg.encoding = encoding
             pub.publish(msg)
         return now
@@ -256,4 +256,19 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
         time.sleep(0.1)
     assert jumps() is not None and jumps()['last_time_jump'].startswith('-1000.0')
     assert jumps()['last_error'] == 'none' and 'stitching failed' not in proc.output()
+
+    # raw cameras' encodings: Bayer frames (uniform grey 60 and 160) are demosaiced
+    def bayer():
+        feeder.attitude(0.0, 0.0, offset[0])
+        feeder.frames(encoding='bayer_rggb8', offset_s=offset[0])
+
+    panoramas.clear()
+    msgs = _feed_until(panoramas, 2, bayer, 20.0)
+    assert len(msgs) >= 2 and 'frame rejected' not in proc.output(), proc.output()
+    values = image_msg_to_array(msgs[-1])
+    values = values[values.max(axis=2) > 0]
+    inside = (values >= 55) & (values <= 165)          # the rest: edges blended with black
+    assert inside.mean() > 0.9 and values.max() <= 165
+    assert (np.abs(values.astype(int) - 60) <= 2).any() and \
+        (np.abs(values.astype(int) - 160) <= 2).any()
     assert proc.proc.poll() is None
