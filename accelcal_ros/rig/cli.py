@@ -1,4 +1,5 @@
 """Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``."""
+from accelcal_ros.cli_args import float_in, int_in, nonnegative_int
 
 
 def register(subparsers: object, study_subparsers: object) -> None:
@@ -12,7 +13,8 @@ def register(subparsers: object, study_subparsers: object) -> None:
     p.add_argument('directory', metavar='DIR')
     p.add_argument('--board', required=True, metavar='COLSxROWS',
                    help='inner corners as OpenCV counts them, e.g. 9x6 (one even, one odd)')
-    p.add_argument('--square-m', required=True, type=float, help='square side (m)')
+    p.add_argument('--square-m', required=True, type=float_in(0.0, 10.0, low_open=True),
+                   help='square side (m)')
     p.add_argument('-o', '--output', required=True, help='rig file (YAML) to write')
     p.add_argument('--intrinsics', nargs='+', default=[], metavar='FILE',
                    help='camera_info YAML files (ROS camera_calibration) held fixed; matched '
@@ -30,8 +32,8 @@ def register(subparsers: object, study_subparsers: object) -> None:
         'rig', help='rig calibration accuracy against the number of poses',
         description='Render a 3-camera ring (known K, D, R_0i, imu_to_camera, 0.4 deg board '
                     'tilt), calibrate it from the first N poses and print the errors.')
-    s.add_argument('--poses', type=int, nargs='+', default=[10, 20, 30, 45])
-    s.add_argument('--seed', type=int, default=1)
+    s.add_argument('--poses', type=int_in(1, 10000), nargs='+', default=[10, 20, 30, 45])
+    s.add_argument('--seed', type=nonnegative_int, default=1)
     s.set_defaults(handler=_study)
 
 
