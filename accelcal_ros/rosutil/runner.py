@@ -135,20 +135,29 @@ def _executable_name() -> str:
     return os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else 'accelcal_ros'
 
 
-def _linger_for_rosout(node: Node, discovery_s: float = 1.0, delivery_s: float = 0.3) -> None:
+def _linger_for_rosout(node: Node, wait_s: float = 3.0, delivery_s: float = 0.3) -> None:
     """
-    Keep the node alive until ``/rosout`` subscribers (rqt_console, a recorder) got the line.
+    Keep the node alive until ``/rosout`` readers (rqt_console, a recorder) got the line.
 
-    Waits at most ``discovery_s`` for one to be discovered, then ``delivery_s``.
+    ``/rosout`` is transient-local: a reader matched while the node lives still gets the
+    line. A silent publisher on ``/rosout`` with the same QoS tells when readers are
+    matched (DDS matching; the graph cache can lag it by seconds); then ``delivery_s``
+    more. At most ``wait_s`` when no reader is there.
     """
-    deadline = time.monotonic() + discovery_s
     try:
+        from rcl_interfaces.msg import Log
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        witness = node.create_publisher(Log, '/rosout', qos)
+        deadline = time.monotonic() + wait_s
         while time.monotonic() < deadline:
-            if node.count_subscribers('/rosout') > 0:
+            if witness.get_subscription_count() > 0:
                 time.sleep(delivery_s)
                 return
-            time.sleep(0.05)
-    except Exception:  # noqa: B902 - the graph query is best effort
+            time.sleep(0.02)
+    except Exception:  # noqa: B902 - best effort: the line is on stderr anyway
         pass
 
 
