@@ -35,6 +35,7 @@ import time
 
 from accelcal_ros.camera.rig import resolve_imu_to_camera
 from accelcal_ros.errors import AccelcalError, InputError
+from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
@@ -125,8 +126,15 @@ class StitcherNode(Node):
             f'depth {v["image_queue_depth"]}; imu_to_camera from {source})')
 
     def _imu_to_camera(self, values):
-        """Return ``(rotation, where it came from)``: the parameter if given, else the rig's."""
-        given = 'imu_to_camera' in (getattr(self, '_parameter_overrides', None) or {})
+        """
+        Return ``(rotation, where it came from)``: the parameter if given, else the rig's.
+
+        A value equal to the default (as config/stitcher.yaml lists it) counts as not
+        given: the rig file's mounting is not overridden by the listed default.
+        """
+        default = [float(x) for x in DEFAULT_IMU_TO_CAMERA.reshape(-1)]
+        given = 'imu_to_camera' in (getattr(self, '_parameter_overrides', None) or {}) \
+            and [float(x) for x in values['imu_to_camera']] != default
         return resolve_imu_to_camera(self.rig, values['imu_to_camera'] if given else None,
                                      name='parameter imu_to_camera')
 

@@ -170,7 +170,7 @@ def test_stitcher_node_reports_unsynchronised_and_wrong_size_frames(graph, tmp_p
     proc = graph.start('stitcher', params={
         'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
         'sync_tolerance_s': 0.001, 'image_reliability': 'best_effort',
-        'imu_to_camera': [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)]})
+        'imu_to_camera': [0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0]})
     pubs = [graph.node.create_publisher(Image, f'cam{i}/image_raw', qos_profile_sensor_data)
             for i in range(2)]
     att = graph.node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
@@ -209,9 +209,10 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
     rig = ring_rig(2, 64, 48, 55.0, 45.0, imu_to_camera=DEFAULT_IMU_TO_CAMERA)
     save_rig(tmp_path / 'rig.yaml', rig)
     topics = ['cam0/image_raw', 'cam1/image_raw']
-    proc = graph.start('stitcher', params={
+    proc = graph.start('stitcher', params={        # the default listed: the rig's wins
         'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
-        'camera_topics': topics, 'compressed_output': True})
+        'camera_topics': topics, 'compressed_output': True,
+        'imu_to_camera': [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)]})
     panoramas = graph.collect(Image, 'panorama', 10)
     compressed = graph.collect(CompressedImage, 'panorama/compressed', 10)
     diagnostics = graph.collect(DiagnosticArray, '/diagnostics', 10)
