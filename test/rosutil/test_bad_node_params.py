@@ -1,0 +1,74 @@
+"""
+Table-driven: every numeric parameter of every node, set out of its range at start-up.
+
+Each case constructs the node class in this process with ``--ros-args -p name:=value``
+(what ``ros2 run`` passes) and expects one :class:`InputError` naming the parameter,
+raised before rclpy's own range check (which printed a 24-line traceback). The runner
+turns that error into one FATAL line and exit status 1 (``test_runner_graph.py`` checks
+that on the installed executable).
+"""
+import importlib
+import json
+import os
+import re
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.node_params import NODE_PARAMS, node_specs
+import pytest
+import rclpy
+from rclpy.node import Node
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _node_classes():
+    with open(os.path.join(REPO, 'setup.py')) as handle:
+        entries = dict(re.findall(r"'(\w+) = (accelcal_ros\.[\w.]+):main'", handle.read()))
+    classes = {}
+    for exe in NODE_PARAMS:
+        module = importlib.import_module(entries[exe])
+        found = [c for c in vars(module).values() if isinstance(c, type)
+                 and issubclass(c, Node) and c.__module__ == module.__name__]
+        assert len(found) == 1, (exe, found)
+        classes[exe] = found[0]
+    return classes
+
+
+def _out_of_range(spec):
+    """A value just outside the spec's range (below the minimum, else above the maximum)."""
+    if spec.minimum is not None:
+        bad = spec.minimum - 1
+    else:
+        bad = spec.maximum + 1
+    element = float(bad) if spec.kind.startswith('double') else int(bad)
+    if spec.kind.endswith('_array'):
+        return [element] * (max(spec.lengths) if spec.lengths else 3)
+    return element
+
+
+CASES = [(exe, spec) for exe in sorted(NODE_PARAMS) for spec in node_specs(exe)
+         if spec.kind.split('_')[0] in ('int', 'double')
+         and (spec.minimum is not None or spec.maximum is not None)]
+
+
+def test_the_table_is_not_empty():
+    """Every node has numeric parameters with ranges."""
+    assert {exe for exe, _ in CASES} == set(NODE_PARAMS)
+
+
+@pytest.mark.parametrize('exe, spec', CASES, ids=[f'{e}-{s.name}' for e, s in CASES])
+def test_out_of_range_start_value_is_one_input_error(exe, spec):
+    """The error names the parameter and says which bound it breaks."""
+    node_class = _node_classes()[exe]
+    value = _out_of_range(spec)
+    rclpy.init(args=['test', '--ros-args', '-p', f'{spec.name}:={json.dumps(value)}'])
+    try:
+        with pytest.raises(InputError) as info:
+            node = node_class()
+            node.destroy_node()
+    finally:
+        rclpy.shutdown()
+    message = str(info.value)
+    assert '\n' not in message
+    assert f'{spec.name}: ' in message
+    assert 'below the minimum' in message or 'above the maximum' in message
