@@ -35,7 +35,7 @@ def _node_classes():
 
 
 def _out_of_range(spec):
-    """A value just outside the spec's range (below the minimum, else above the maximum)."""
+    """Return a value just outside the spec's range (below its minimum, else above its maximum)."""
     if spec.minimum is not None:
         bad = spec.minimum - 1
     else:
