@@ -17,7 +17,10 @@ of the wrong type or empty: the message lists the topics there are).
 """
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, Iterator, List, Optional, Sequence, Tuple
+import os
+import sqlite3
+import struct
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type
 
 from accelcal_ros.errors import AccelcalError, FileFormatError, InputError
 from accelcal_ros.recording.progress import Progress
@@ -26,6 +29,35 @@ BAG_SUFFIXES = ('.bag', '.mcap', '.db3')
 _STORAGE_SUFFIXES = ('.mcap', '.db3')
 _DAMAGE_WORDS = ('index', 'magic', 'malformed', 'header could not', 'truncat', 'unexpected end',
                  'not a database')
+
+
+def damage_errors() -> Tuple[Type[BaseException], ...]:
+    """
+    Return the exception types ``rosbags`` and its storage back ends raise on a bad bag.
+
+    rosbags' own errors, and what its decoders (struct, lz4, bz2, zstd, sqlite3/apsw) and
+    the message deserialiser raise on damaged or cut-short data: an invalid length
+    (``ValueError``, ``OverflowError``), a missing index entry (``KeyError``,
+    ``IndexError``), a failed internal check (``AssertionError``), bad text
+    (``UnicodeDecodeError``), I/O errors.
+    """
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Ros1ReaderError, WriterError as Ros1WriterError
+    from rosbags.rosbag2 import ReaderError as Ros2ReaderError, WriterError as Ros2WriterError
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
+
+    errors: List[Type[BaseException]] = [
+        AnyReaderError, Ros1ReaderError, Ros1WriterError, Ros2ReaderError, Ros2WriterError,
+        SerdeError, TypesysError, OSError, EOFError, ValueError, ArithmeticError, LookupError,
+        AssertionError, RuntimeError, struct.error, sqlite3.Error]
+    for module, name in (('apsw', 'Error'), ('backports.zstd', 'ZstdError'),
+                         ('compression.zstd', 'ZstdError')):
+        try:
+            errors.append(getattr(__import__(module, fromlist=[name]), name))
+        except (ImportError, AttributeError):
+            pass
+    return tuple(errors)
 
 
 def normalize_type(msgtype: str) -> str:
@@ -38,7 +70,7 @@ def normalize_topic(topic: str) -> str:
     return '/' + topic.strip().lstrip('/')
 
 
-def is_bag(path) -> bool:
+def is_bag(path: 'os.PathLike[str] | str') -> bool:
     """Return True when ``path`` looks like a bag (by suffix or rosbag2 directory content)."""
     p = Path(path)
     if p.is_dir():
@@ -105,7 +137,7 @@ def _reason(exc: BaseException) -> str:
 class BagReader:
     """Read a bag lazily; use as a context manager (``with BagReader(path) as bag:``)."""
 
-    def __init__(self, path, stamp: str = 'header'):
+    def __init__(self, path: 'os.PathLike[str] | str', stamp: str = 'header') -> None:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import get_typestore, Stores
 
@@ -120,7 +152,7 @@ class BagReader:
         try:
             self._reader = AnyReader([storage], default_typestore=get_typestore(store))
             self._reader.open()
-        except Exception as exc:  # rosbags raises many types for bad files
+        except damage_errors() as exc:
             hint = ''
             if any(w in _reason(exc).lower() for w in _DAMAGE_WORDS):
                 hint = (' (damaged or cut short, e.g. the recorder was killed: `rosbag '
@@ -134,14 +166,13 @@ class BagReader:
             return any(storage.glob('*.mcap'))
         return storage.suffix.lower() == '.mcap'
 
-    def __enter__(self):
+    def __enter__(self) -> 'BagReader':
         """Return the open reader."""
         return self
 
-    def __exit__(self, *exc):
-        """Close the bag."""
+    def __exit__(self, *exc: object) -> None:
+        """Close the bag (exceptions propagate)."""
         self.close()
-        return False
 
     def close(self) -> None:
         """Close the bag (idempotent)."""
@@ -149,7 +180,7 @@ class BagReader:
             self._open = False
             try:
                 self._reader.close()
-            except Exception:  # closing a damaged bag must not hide the first error
+            except damage_errors():  # closing a damaged bag must not hide the first error
                 pass
 
     @property
@@ -169,7 +200,7 @@ class BagReader:
                 item.count += int(conn.msgcount)
         return found
 
-    def connection_of(self, topic: str):
+    def connection_of(self, topic: str) -> Any:
         """Return the rosbags Connection of a topic (type, definition, digest, QoS)."""
         for conn in self._reader.connections:
             if conn.topic == topic:
@@ -195,6 +226,7 @@ class BagReader:
         """
         topics = self.topics()
         wanted = ' or '.join(types)
+        topic: Optional[TopicSummary]
         if requested is None:
             candidates = [t for t in topics.values() if t.msgtype in types]
             if len(candidates) == 1:
@@ -220,13 +252,13 @@ class BagReader:
             raise InputError(f'topic {topic.name} of {self.path} is empty (0 messages)')
         return topic.name
 
-    def deserialize(self, raw: bytes, msgtype: str):
+    def deserialize(self, raw: bytes, msgtype: str) -> Any:
         """Deserialise one message of this bag (``pkg/Type`` or ``pkg/msg/Type``)."""
         parts = msgtype.split('/')
         full = msgtype if len(parts) == 3 else f'{parts[0]}/msg/{parts[-1]}'
         try:
             return self._reader.deserialize(raw, full)
-        except Exception as exc:
+        except damage_errors() as exc:
             raise FileFormatError(self.path, f'cannot decode a {msgtype}: {_reason(exc)}') \
                 from None
 
@@ -256,7 +288,7 @@ class BagReader:
                 yield BagMessage(conn.topic, normalize_type(conn.msgtype), receive_ns, msg, raw)
         except AccelcalError:
             raise
-        except Exception as exc:  # rosbags/sqlite/lz4/zstd/struct errors on damaged data
+        except damage_errors() as exc:
             raise FileFormatError(self.path, self._damage(read, total, first_ns, last_ns,
                                                           _reason(exc))) from None
         finally:
@@ -267,8 +299,10 @@ class BagReader:
                 'lists'))
 
     @staticmethod
-    def _damage(read, total, first_ns, last_ns, reason) -> str:
-        span = '' if first_ns is None else f', {(last_ns - first_ns) / 1e9:.3f} s into the data'
+    def _damage(read: int, total: int, first_ns: Optional[int], last_ns: Optional[int],
+                reason: str) -> str:
+        span = ('' if first_ns is None or last_ns is None
+                else f', {(last_ns - first_ns) / 1e9:.3f} s into the data')
         of = f' of {total}' if total else ''
         return (f'corrupt or truncated: read {read}{of} messages{span} before: {reason}; '
                 'nothing is computed from a partial bag (repair it with `ros2 bag reindex` / '

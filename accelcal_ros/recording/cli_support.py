@@ -10,9 +10,11 @@ without a suffix, the rosbag2 directory) rather than a CSV.
 import argparse
 import os
 import sys
-from typing import Iterable
+from typing import Iterable, Union
 
 from accelcal_ros.recording.bag import BagReader, is_bag
+
+PathLike = Union[str, 'os.PathLike[str]']
 
 __all__ = ['add_stamp_argument', 'is_bag', 'is_bag_output', 'open_bag', 'warn']
 
@@ -31,14 +33,14 @@ def warn(lines: Iterable[str]) -> None:
         print(f'accelcal: warning: {line}', file=sys.stderr)
 
 
-def open_bag(path, stamp: str = 'header') -> BagReader:
+def open_bag(path: PathLike, stamp: str = 'header') -> BagReader:
     """Open a bag for a command; notes (e.g. missing metadata.yaml) go to stderr."""
     bag = BagReader(path, stamp=stamp)
     warn(bag.notes)
     return bag
 
 
-def is_bag_output(path) -> bool:
+def is_bag_output(path: PathLike) -> bool:
     """Return True when an output path names a bag rather than a CSV or image file."""
     text = os.fspath(path)
     suffix = os.path.splitext(text.rstrip('/'))[1].lower()

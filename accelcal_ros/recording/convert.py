@@ -15,7 +15,7 @@ classes as on rclpy's. Units stay ROS's (REP-103: m, m/s^2, rad/s, rad).
   (x = roll, y = pitch, rad);
 - sensor_msgs/CameraInfo: :func:`camera_info` (K, D, P, size, distortion model).
 """
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Any, Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 import numpy as np
@@ -29,7 +29,7 @@ VECTOR3_STAMPED = 'geometry_msgs/Vector3Stamped'
 CAMERA_INFO = 'sensor_msgs/CameraInfo'
 
 
-def imu_values(msg) -> Tuple[np.ndarray, np.ndarray, bool]:
+def imu_values(msg: Any) -> Tuple[np.ndarray, np.ndarray, bool]:
     """Return ``(specific force (3,) m/s^2, angular rate (3,) rad/s, rate provided)``."""
     a, w = msg.linear_acceleration, msg.angular_velocity
     accel = np.array([a.x, a.y, a.z], dtype=float)
@@ -38,26 +38,26 @@ def imu_values(msg) -> Tuple[np.ndarray, np.ndarray, bool]:
     return accel, gyro, provided
 
 
-def cloud_array(msg) -> np.ndarray:
+def cloud_array(msg: Any) -> np.ndarray:
     """Return the points of a PointCloud2 as a packed structured array (fields kept)."""
     from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 
     return pointcloud2_to_array(msg)
 
 
-def odometry_pose(msg) -> Tuple[np.ndarray, np.ndarray]:
+def odometry_pose(msg: Any) -> Tuple[np.ndarray, np.ndarray]:
     """Return ``(position (3,) m, quaternion (4,) x y z w)`` of an Odometry's pose."""
     p, q = msg.pose.pose.position, msg.pose.pose.orientation
     return (np.array([p.x, p.y, p.z], dtype=float),
             np.array([q.x, q.y, q.z, q.w], dtype=float))
 
 
-def attitude_roll_pitch(msg) -> Tuple[float, float]:
+def attitude_roll_pitch(msg: Any) -> Tuple[float, float]:
     """Return ``(roll, pitch)`` rad of the attitude node's Vector3Stamped (x, y)."""
     return float(msg.vector.x), float(msg.vector.y)
 
 
-def image_array(msg, msgtype: str = IMAGE) -> np.ndarray:
+def image_array(msg: Any, msgtype: str = IMAGE) -> np.ndarray:
     """Return an Image or CompressedImage as an OpenCV BGR (or mono) uint8 array."""
     if msgtype == COMPRESSED_IMAGE:
         import cv2
@@ -74,7 +74,7 @@ def image_array(msg, msgtype: str = IMAGE) -> np.ndarray:
                               encodings=('rgb8', 'bgr8', 'mono8', 'mono16'))
 
 
-def camera_info(msg) -> Dict[str, object]:
+def camera_info(msg: Any) -> Dict[str, object]:
     """Return ``{'K' (3, 3), 'D' (n,), 'P' (3, 4), 'width', 'height', 'distortion_model'}``."""
     k = np.asarray(getattr(msg, 'k', getattr(msg, 'K', None)), dtype=float).reshape(3, 3)
     d = np.asarray(getattr(msg, 'd', getattr(msg, 'D', ())), dtype=float).reshape(-1)

@@ -1,4 +1,7 @@
 """Write the simulators' data as bags (rosbag2 mcap, rosbag2 sqlite3, ROS 1): tests, benchmark."""
+from pathlib import Path
+from typing import Any, Optional, Sequence, Tuple
+
 from accelcal_ros.recording.writer import BagWriter, sensor_data_qos
 import numpy as np
 
@@ -6,13 +9,15 @@ FORMATS = ('mcap', 'sqlite3', 'ros1')
 T0_NS = 1_700_000_000 * 10**9
 
 
-def bag_path(tmp_path, name, fmt):
+def bag_path(tmp_path: Path, name: str, fmt: str) -> Path:
     """Return the output path of a bag in ``fmt`` (ROS 1: a .bag file)."""
     return tmp_path / (f'{name}.bag' if fmt == 'ros1' else f'{name}_{fmt}')
 
 
-def write_imu_bag(path, fmt, t, accel, gyro=None, topic='/imu/data_raw', frame_id='imu_link',
-                  receive_offset_s=0.0, extra_topics=()):
+def write_imu_bag(path: Path, fmt: str, t: np.ndarray, accel: np.ndarray,
+                  gyro: Optional[np.ndarray] = None, topic: str = '/imu/data_raw',
+                  frame_id: str = 'imu_link', receive_offset_s: float = 0.0,
+                  extra_topics: Sequence[Tuple[str, str]] = ()) -> Path:
     """IMU samples (s, m/s^2, rad/s) as sensor_msgs/Imu; ``extra_topics``: (topic, type)."""
     with BagWriter(path, fmt) as writer:
         writer.add_topic(topic, 'sensor_msgs/Imu', [sensor_data_qos()])
@@ -26,8 +31,9 @@ def write_imu_bag(path, fmt, t, accel, gyro=None, topic='/imu/data_raw', frame_i
     return path
 
 
-def write_protocol_bag(path, fmt, protocol, imu_topic='/imu/data',
-                       points_topic='/velodyne_points', scans_per_position=2):
+def write_protocol_bag(path: Path, fmt: str, protocol: Sequence[Any],
+                       imu_topic: str = '/imu/data', points_topic: str = '/velodyne_points',
+                       scans_per_position: int = 2) -> Path:
     """
     Paper B's protocol as one continuous recording: the positions' IMU logs one after the other.
 

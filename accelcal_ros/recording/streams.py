@@ -11,12 +11,15 @@ the times go backwards or jump, and when the header stamps are far from the rece
 is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional, Tuple
+from typing import Any, List, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagMessage, BagReader
 import numpy as np
+
+if TYPE_CHECKING:
+    from accelcal_ros.sensor.model import SensorModel
 
 HEADER_RECEIVE_WARN_S = 0.5
 """Median |header - receive| above which the choice of stamp is stated."""
@@ -104,12 +107,13 @@ class ImuStream:
     warnings: List[str] = field(default_factory=list)
 
 
-def _sorted_unique(topic, t, *arrays):
+def _sorted_unique(topic: str, t: np.ndarray, *columns: Optional[np.ndarray]
+                   ) -> Tuple[np.ndarray, List[Any], List[str]]:
     """Sort by time (stable) and drop repeated stamps; returns (t, arrays, warnings)."""
     warnings = []
     order = np.argsort(t, kind='stable')
     t = t[order]
-    arrays = [None if a is None else a[order] for a in arrays]
+    arrays: List[Any] = [None if a is None else a[order] for a in columns]
     keep = np.concatenate([[True], np.diff(t) > 0])
     if not keep.all():
         warnings.append(f'{topic}: {int((~keep).sum())} messages repeat a time already seen; '
@@ -131,31 +135,35 @@ def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> I
     imu_arrays_from_raw` (vectorised), one by one where a chunk's layout varies.
     """
     name = bag.select_topic(topic, (convert.IMU,), option)
-    header, receive, accel, gyro = [], [], [], []
+    header_parts: List[np.ndarray] = []
+    receive_parts: List[np.ndarray] = []
+    accel_parts: List[np.ndarray] = []
+    gyro_parts: List[np.ndarray] = []
     provided = False
     frame_id = ''
-    raws, stamps = [], []
+    raws: List[bytes] = []
+    stamps: List[int] = []
 
-    def flush():
+    def flush() -> None:
         nonlocal provided, frame_id
         fast = convert.imu_arrays_from_raw(raws, bag.is_ros1)
         if fast is None:
             for raw in raws:
                 msg = bag.deserialize(raw, convert.IMU)
                 a, w, p = convert.imu_values(msg)
-                accel.append(a[None, :])
-                gyro.append(w[None, :])
+                accel_parts.append(a[None, :])
+                gyro_parts.append(w[None, :])
                 provided = provided or p
-                header.append(np.array([int(msg.header.stamp.sec) * 1_000_000_000
+                header_parts.append(np.array([int(msg.header.stamp.sec) * 1_000_000_000
                                         + int(msg.header.stamp.nanosec)], dtype=np.int64))
                 frame_id = frame_id or str(msg.header.frame_id)
         else:
-            accel.append(fast['accel'])
-            gyro.append(fast['gyro'])
-            header.append(fast['header_ns'])
+            accel_parts.append(fast['accel'])
+            gyro_parts.append(fast['gyro'])
+            header_parts.append(fast['header_ns'])
             provided = provided or fast['gyro_provided']
             frame_id = frame_id or fast['frame_id']
-        receive.append(np.array(stamps, dtype=np.int64))
+        receive_parts.append(np.array(stamps, dtype=np.int64))
         raws.clear()
         stamps.clear()
 
@@ -166,13 +174,13 @@ def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> I
             flush()
     if raws:
         flush()
-    header, receive = np.concatenate(header), np.concatenate(receive)
+    header, receive = np.concatenate(header_parts), np.concatenate(receive_parts)
     used_ns = used_times_ns(header, receive, bag.stamp)
     epoch_ns = int(used_ns.min())
     warnings = _check_ns(name, header, receive, bag.stamp, epoch_ns)
     t = (used_ns - epoch_ns) / 1e9
-    accel = np.concatenate(accel).reshape(-1, 3)
-    gyro_arr = np.concatenate(gyro).reshape(-1, 3) if provided else None
+    accel = np.concatenate(accel_parts).reshape(-1, 3)
+    gyro_arr = np.concatenate(gyro_parts).reshape(-1, 3) if provided else None
     bad = ~np.all(np.isfinite(accel), axis=1)
     if bad.all():
         raise InputError(f'{name}: every linear_acceleration is NaN or infinite')
@@ -180,7 +188,8 @@ def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> I
     return ImuStream(name, t, accel, gyro_arr, frame_id, epoch_ns, warnings + more)
 
 
-def _check_ns(name, header_ns, receive_ns, stamp, epoch_ns):
+def _check_ns(name: str, header_ns: np.ndarray, receive_ns: np.ndarray, stamp: str,
+              epoch_ns: int) -> List[str]:
     """:func:`check_stamps` on ns arrays, relative to ``epoch_ns`` (full resolution)."""
     header_ns = np.asarray(header_ns, dtype=np.int64)
     rel_header = np.where(header_ns != 0, (header_ns - epoch_ns) / 1e9, 0.0)
@@ -205,19 +214,22 @@ def read_odometry(bag: BagReader, topic: Optional[str], option: str = '--odom'
                   ) -> PoseStreamArrays:
     """Read a nav_msgs/Odometry topic into arrays (sorted by time, repeats dropped)."""
     name = bag.select_topic(topic, (convert.ODOMETRY,), option)
-    header, receive, pos, quat = [], [], [], []
+    header_s: List[float] = []
+    receive_s: List[float] = []
+    pos: List[np.ndarray] = []
+    quat: List[np.ndarray] = []
     for message in bag.messages([name], f'reading {name}'):
         p, q = convert.odometry_pose(message.msg)
         pos.append(p)
         quat.append(q)
-        header.append(message.header_ns * 1e-9)
-        receive.append(message.receive_ns * 1e-9)
-    header, receive = np.array(header), np.array(receive)
+        header_s.append(message.header_ns * 1e-9)
+        receive_s.append(message.receive_ns * 1e-9)
+    header, receive = np.array(header_s), np.array(receive_s)
     warnings = check_stamps(name, header, receive, bag.stamp)
     t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
-    t, (pos, quat), more = _sorted_unique(name, t, np.array(pos).reshape(-1, 3),
-                                          np.array(quat).reshape(-1, 4))
-    return PoseStreamArrays(name, t, pos, quat, warnings + more)
+    t, (position, quaternion), more = _sorted_unique(name, t, np.array(pos).reshape(-1, 3),
+                                                     np.array(quat).reshape(-1, 4))
+    return PoseStreamArrays(name, t, position, quaternion, warnings + more)
 
 
 @dataclass
@@ -235,20 +247,23 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
                   ) -> AttitudeStream:
     """Read the attitude node's geometry_msgs/Vector3Stamped topic (x roll, y pitch, rad)."""
     name = bag.select_topic(topic, (convert.VECTOR3_STAMPED,), option)
-    header, receive, rp = [], [], []
+    header_s: List[float] = []
+    receive_s: List[float] = []
+    rp: List[Tuple[float, float]] = []
     for message in bag.messages([name], f'reading {name}'):
         rp.append(convert.attitude_roll_pitch(message.msg))
-        header.append(message.header_ns * 1e-9)
-        receive.append(message.receive_ns * 1e-9)
-    header, receive = np.array(header), np.array(receive)
+        header_s.append(message.header_ns * 1e-9)
+        receive_s.append(message.receive_ns * 1e-9)
+    header, receive = np.array(header_s), np.array(receive_s)
     warnings = check_stamps(name, header, receive, bag.stamp)
     t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
-    t, (rp,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
-    return AttitudeStream(name, t, rp[:, 0], rp[:, 1], warnings + more)
+    t, (roll_pitch,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
+    return AttitudeStream(name, t, roll_pitch[:, 0], roll_pitch[:, 1], warnings + more)
 
 
 def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Optional[str],
-                    model=None) -> Tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+                    model: Optional['SensorModel'] = None
+                    ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[str]]:
     """Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic."""
     if attitude_topic is not None or imu_topic is None:
         try:

@@ -12,12 +12,16 @@ so ``ros2 bag play`` replays with the driver's QoS.
 import os
 from pathlib import Path
 import shutil
-from typing import Dict, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Union
 
 from accelcal_ros.errors import FileFormatError, InputError
+from accelcal_ros.recording.bag import damage_errors
 import numpy as np
 
 FORMATS = ('mcap', 'sqlite3', 'ros1')
+
+PathLike = Union[str, 'os.PathLike[str]']
+Vector = Union[Sequence[float], np.ndarray]
 
 
 def full_type(msgtype: str) -> str:
@@ -26,7 +30,7 @@ def full_type(msgtype: str) -> str:
     return msgtype if len(parts) == 3 else f'{parts[0]}/msg/{parts[-1]}'
 
 
-def format_for(path, fmt: Optional[str] = None) -> str:
+def format_for(path: PathLike, fmt: Optional[str] = None) -> str:
     """Return the bag format for an output path: ``ros1`` for ``*.bag``, else ``fmt`` or mcap."""
     if str(path).endswith('.bag'):
         if fmt not in (None, 'ros1'):
@@ -37,7 +41,7 @@ def format_for(path, fmt: Optional[str] = None) -> str:
     return fmt or 'mcap'
 
 
-def sensor_data_qos():
+def sensor_data_qos() -> Any:
     """Return rclpy's ``qos_profile_sensor_data`` as a rosbags Qos (offered-QoS metadata)."""
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
                                     QosReliability, QosTime)
@@ -50,7 +54,7 @@ def sensor_data_qos():
 class BagWriter:
     """Write messages to a new bag; use as a context manager (renames into place on success)."""
 
-    def __init__(self, path, fmt: Optional[str] = None):
+    def __init__(self, path: PathLike, fmt: Optional[str] = None) -> None:
         from rosbags.typesys import get_typestore, Stores
 
         self.path = Path(path)
@@ -66,27 +70,29 @@ class BagWriter:
         self._remove_tmp()
         self.typestore = get_typestore(Stores.ROS1_NOETIC if self.format == 'ros1'
                                        else Stores.ROS2_JAZZY)
+        self._writer: Any  # rosbags.rosbag1.Writer or rosbags.rosbag2.Writer
         if self.format == 'ros1':
-            from rosbags.rosbag1 import Writer
+            from rosbags.rosbag1 import Writer as Ros1Writer
 
-            self._writer = Writer(self._tmp)
+            self._writer = Ros1Writer(self._tmp)
         else:
-            from rosbags.rosbag2 import StoragePlugin, Writer
+            from rosbags.rosbag2 import StoragePlugin, Writer as Ros2Writer
 
             plugin = StoragePlugin.MCAP if self.format == 'mcap' else StoragePlugin.SQLITE3
-            self._writer = Writer(self._tmp, version=9, storage_plugin=plugin)
+            self._writer = Ros2Writer(self._tmp, version=9, storage_plugin=plugin)
         self._writer.open()
-        self._conns: Dict[str, object] = {}
+        self._conns: Dict[str, Any] = {}
         self._seq: Dict[str, int] = {}
         self.count = 0
 
-    def _remove_tmp(self):
+    def _remove_tmp(self) -> None:
         if self._tmp.is_dir():
             shutil.rmtree(self._tmp)
         elif self._tmp.exists():
             self._tmp.unlink()
 
-    def add_topic(self, topic: str, msgtype: str, qos: Sequence = (), source=None) -> None:
+    def add_topic(self, topic: str, msgtype: str, qos: Sequence[Any] = (),
+                  source: Any = None) -> None:
         """
         Declare ``topic`` of ``msgtype`` (``pkg/Type``) with offered QoS profiles.
 
@@ -97,7 +103,7 @@ class BagWriter:
             return
         mtype = full_type(msgtype)
         known = mtype in self.typestore.types
-        kwargs = {}
+        kwargs: Dict[str, Any] = {}
         if not known:
             if source is None:
                 raise InputError(f'message type {msgtype} is unknown; cannot write {topic}')
@@ -114,7 +120,7 @@ class BagWriter:
             self._conns[topic] = self._writer.add_connection(
                 topic, mtype, offered_qos_profiles=list(qos), **kwargs)
 
-    def write(self, topic: str, receive_ns: int, msg) -> None:
+    def write(self, topic: str, receive_ns: int, msg: Any) -> None:
         """Serialise ``msg`` (a rosbags message object) onto a declared topic."""
         conn = self._conns[topic]
         if self.format == 'ros1':
@@ -123,7 +129,8 @@ class BagWriter:
             data = self.typestore.serialize_cdr(msg, conn.msgtype)
         self.write_raw(topic, receive_ns, data)
 
-    def write_raw(self, topic: str, receive_ns: int, data) -> None:
+    def write_raw(self, topic: str, receive_ns: int,
+                  data: Union[bytes, memoryview, np.ndarray]) -> None:
         """Write already serialised bytes (this bag's serialisation) onto a declared topic."""
         self._writer.write(self._conns[topic], int(receive_ns), data)
         self.count += 1
@@ -132,7 +139,7 @@ class BagWriter:
         """Finish the bag and move it into place."""
         try:
             self._writer.close()
-        except Exception as exc:
+        except damage_errors() as exc:
             self._remove_tmp()
             raise FileFormatError(self.path, f'cannot finish the bag: {exc}') from None
         if self.format != 'ros1':
@@ -148,24 +155,23 @@ class BagWriter:
         """Drop the partial bag."""
         try:
             self._writer.close()
-        except Exception:
-            pass
+        except damage_errors():
+            pass  # the partial bag is dropped anyway
         self._remove_tmp()
 
-    def __enter__(self):
+    def __enter__(self) -> 'BagWriter':
         """Return the writer."""
         return self
 
-    def __exit__(self, exc_type, *rest):
+    def __exit__(self, exc_type: Optional[type], *rest: object) -> None:
         """Close on success, drop the partial bag on error."""
         if exc_type is None:
             self.close()
         else:
             self.abort()
-        return False
 
     # -- messages ------------------------------------------------------------------------
-    def header(self, t_ns: int, frame_id: str, topic: str = ''):
+    def header(self, t_ns: int, frame_id: str, topic: str = '') -> Any:
         """Return a std_msgs/Header for this bag's type set (ROS 1 headers count ``seq``)."""
         types = self.typestore.types
         stamp = types['builtin_interfaces/msg/Time'](sec=int(t_ns // 1_000_000_000),
@@ -177,8 +183,9 @@ class BagWriter:
             return header_type(seq=seq, stamp=stamp, frame_id=frame_id)
         return header_type(stamp=stamp, frame_id=frame_id)
 
-    def imu_message(self, t_ns: int, accel_m_s2, frame_id: str, gyro_rad_s=None,
-                    accel_covariance=None, topic: str = ''):
+    def imu_message(self, t_ns: int, accel_m_s2: Vector, frame_id: str,
+                    gyro_rad_s: Optional[Vector] = None,
+                    accel_covariance: Optional[Vector] = None, topic: str = '') -> Any:
         """Return a sensor_msgs/Imu as the driver publishes it (see the module docstring)."""
         types = self.typestore.types
         vec = types['geometry_msgs/msg/Vector3']
@@ -202,21 +209,25 @@ class BagWriter:
             linear_acceleration_covariance=accel_cov)
 
     def pointcloud2_message(self, t_ns: int, cloud: np.ndarray, frame_id: str,
-                            topic: str = ''):
+                            topic: str = '') -> Any:
         """Return an unorganised sensor_msgs/PointCloud2 holding structured array ``cloud``."""
         codes = {'i1': 1, 'u1': 2, 'i2': 3, 'u2': 4, 'i4': 5, 'u4': 6, 'f4': 7, 'f8': 8}
         cloud = np.ascontiguousarray(cloud)
-        packed = np.dtype([(n, cloud.dtype[n].newbyteorder('<')) for n in cloud.dtype.names])
+        names = cloud.dtype.names
+        if not names:
+            raise InputError('a cloud to write must be a structured array (named fields)')
+        packed = np.dtype([(n, cloud.dtype[n].newbyteorder('<')) for n in names])
+        layout: Dict[str, Any] = dict(packed.fields or {})
         data = np.zeros(len(cloud), dtype=packed)
         types = self.typestore.types
         field_type = types['sensor_msgs/msg/PointField']
-        fields = []
-        for name in cloud.dtype.names:
+        fields: List[Any] = []
+        for name in names:
             data[name] = cloud[name]
             code = codes.get(packed[name].str[1:])
             if code is None:
                 raise InputError(f'cloud field {name!r} ({packed[name]}) has no PointField type')
-            fields.append(field_type(name=name, offset=packed.fields[name][1], datatype=code,
+            fields.append(field_type(name=name, offset=layout[name][1], datatype=code,
                                      count=1))
         return types['sensor_msgs/msg/PointCloud2'](
             header=self.header(t_ns, frame_id, topic), height=1, width=len(cloud),
@@ -224,8 +235,8 @@ class BagWriter:
             row_step=packed.itemsize * len(cloud),
             data=np.frombuffer(data.tobytes(), dtype=np.uint8), is_dense=True)
 
-    def odometry_message(self, t_ns: int, position_m, quat_xyzw, frame_id: str,
-                         child_frame_id: str, topic: str = ''):
+    def odometry_message(self, t_ns: int, position_m: Vector, quat_xyzw: Vector, frame_id: str,
+                         child_frame_id: str, topic: str = '') -> Any:
         """Return a nav_msgs/Odometry: pose of ``child_frame_id`` in ``frame_id`` (no twist)."""
         types = self.typestore.types
         p = [float(v) for v in position_m]
@@ -244,7 +255,8 @@ class BagWriter:
             header=self.header(t_ns, frame_id, topic), child_frame_id=child_frame_id,
             pose=with_cov, twist=twist_cov)
 
-    def image_message(self, t_ns: int, image: np.ndarray, frame_id: str, topic: str = ''):
+    def image_message(self, t_ns: int, image: np.ndarray, frame_id: str,
+                      topic: str = '') -> Any:
         """Return a sensor_msgs/Image: ``mono8`` for (H, W) uint8, ``bgr8`` for (H, W, 3)."""
         image = np.ascontiguousarray(image, dtype=np.uint8)
         encoding = 'mono8' if image.ndim == 2 else 'bgr8'
@@ -254,24 +266,27 @@ class BagWriter:
             encoding=encoding, is_bigendian=0, step=image.strides[0],
             data=image.reshape(-1).view(np.uint8))
 
-    def camera_info_message(self, t_ns: int, k, d, width: int, height: int, frame_id: str,
-                            distortion_model: str = 'plumb_bob', topic: str = ''):
+    def camera_info_message(self, t_ns: int, k: Vector, d: Vector, width: int, height: int,
+                            frame_id: str, distortion_model: str = 'plumb_bob',
+                            topic: str = '') -> Any:
         """Return a sensor_msgs/CameraInfo (K 3x3, D, P = [K | 0], R = I)."""
         types = self.typestore.types
-        k = np.asarray(k, dtype=float).reshape(3, 3)
-        p = np.hstack([k, np.zeros((3, 1))]).reshape(-1)
+        k_matrix = np.asarray(k, dtype=float).reshape(3, 3)
+        p = np.hstack([k_matrix, np.zeros((3, 1))]).reshape(-1)
         roi = types['sensor_msgs/msg/RegionOfInterest'](x_offset=0, y_offset=0, height=0,
                                                         width=0, do_rectify=False)
-        fields = {'header': self.header(t_ns, frame_id, topic), 'height': int(height),
-                  'width': int(width), 'distortion_model': distortion_model, 'binning_x': 0,
-                  'binning_y': 0, 'roi': roi}
-        arrays = {'d': np.asarray(d, dtype=float).reshape(-1), 'k': k.reshape(-1),
+        fields: Dict[str, Any] = {
+            'header': self.header(t_ns, frame_id, topic), 'height': int(height),
+            'width': int(width), 'distortion_model': distortion_model, 'binning_x': 0,
+            'binning_y': 0, 'roi': roi}
+        arrays = {'d': np.asarray(d, dtype=float).reshape(-1), 'k': k_matrix.reshape(-1),
                   'r': np.eye(3).reshape(-1), 'p': p}
         for name, value in arrays.items():
             fields[name.upper() if self.format == 'ros1' else name] = value
         return types['sensor_msgs/msg/CameraInfo'](**fields)
 
-    def vector3_stamped_message(self, t_ns: int, xyz, frame_id: str, topic: str = ''):
+    def vector3_stamped_message(self, t_ns: int, xyz: Vector, frame_id: str,
+                                topic: str = '') -> Any:
         """Return a geometry_msgs/Vector3Stamped (the attitude node: x roll, y pitch, rad)."""
         types = self.typestore.types
         x, y, z = (float(v) for v in xyz)
