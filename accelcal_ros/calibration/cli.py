@@ -12,12 +12,13 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
   example.
 """
 import sys
+from typing import Any
 
 from accelcal_ros.cli_args import float_in, nonnegative_int, positive_int
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 
 
-def register(subparsers, study_subparsers):
+def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add this feature's subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser('calibrate', help='fit a calibration to a recording of still '
                               'positions (CSV t,ax,ay,az in s and m/s^2)')

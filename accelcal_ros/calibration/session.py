@@ -90,7 +90,7 @@ class Progress:
 class Calibrator:
     """A field calibration session (see the module docstring)."""
 
-    def __init__(self, config=None):
+    def __init__(self, config: Optional[CalibratorConfig] = None) -> None:
         self.config = config or CalibratorConfig()
         check_model(self.config.model)
         self.active = False

@@ -16,7 +16,7 @@ sensor) recomputed with the package's own model and angle code, see
 :func:`paper_worked_example`.
 """
 import time
-from typing import List, Tuple
+from typing import Callable, List, Sequence, Tuple
 
 from accelcal_ros.calibration.coverage import (recommended_directions, TEST_GRID, tilt_errors_rad,
                                                unit_directions)
@@ -91,8 +91,9 @@ def _fit_trials(truth, positions, samples, count, seed, layout, model, retries=1
     return models, refused, elapsed / max(len(models) + refused, 1), predicted
 
 
-def fitted_models(positions=12, seconds_per_position=1.0, count=100, seed=0,
-                  layout='recommended', model='full'):
+def fitted_models(positions: int = 12, seconds_per_position: float = 1.0, count: int = 100,
+                  seed: int = 0, layout: str = 'recommended',
+                  model: str = 'full') -> List[SensorModel]:
     """
     Return ``count`` independent calibrations (SensorModel) of the default sim sensor.
 
@@ -200,8 +201,11 @@ def format_worked_example(rows: List[dict]) -> List[str]:
     return lines
 
 
-def run_study(trials=100, seed=0, counts=POSITION_COUNTS, models=('diagonal', 'full'),
-              layouts=('random', 'recommended'), samples_options=(1, 100), say=print):
+def run_study(trials: int = 100, seed: int = 0, counts: Sequence[int] = POSITION_COUNTS,
+              models: Sequence[str] = ('diagonal', 'full'),
+              layouts: Sequence[str] = ('random', 'recommended'),
+              samples_options: Sequence[int] = (1, 100),
+              say: Callable[..., None] = print) -> List[dict]:
     """Run the study, printing a table with ``say``; returns the rows."""
     truth = paper_a_model(500)
     rows = []
@@ -243,7 +247,8 @@ def format_row(row: dict) -> str:
                    f'{row["predicted_p95_deg"]:>8.4f} {row["fit_ms"]:>7.2f}')
 
 
-def run_real_like(trials=100, seed=0, say=print):
+def run_real_like(trials: int = 100, seed: int = 0,
+                  say: Callable[..., None] = print) -> List[dict]:
     """Diagonal vs full model on a sensor with ~1 % cross-axis coupling; returns rows."""
     truth = paper_a_model(500)
     truth = SensorModel(truth.scale, truth.bias, REAL_LIKE_MISALIGNMENT)

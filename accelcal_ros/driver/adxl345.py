@@ -19,7 +19,7 @@ from collections import deque
 import errno
 import os
 import struct
-from typing import Tuple
+from typing import Any, Optional, Tuple
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.errors import DeviceError, InputError
@@ -49,7 +49,7 @@ def open_smbus(bus_number: int) -> object:
 class Adxl345:
     """One ADXL345 on an smbus2-like ``bus`` at ``address``."""
 
-    def __init__(self, bus, address=0x53, bus_number=None):
+    def __init__(self, bus: Any, address: int = 0x53, bus_number: Optional[int] = None) -> None:
         if address not in reg.VALID_ADDRESSES:
             raise InputError(f'i2c_address 0x{address:02X} is not an ADXL345 address '
                              f'(0x53 with ALT ADDRESS low, 0x1D with it high)')

@@ -7,10 +7,12 @@ real one over I2C, e.g.::
     accelcal record -o rec.csv --duration 60 --dwell 3 --move 1
     accelcal record -o rec.csv --backend i2c --bus 1 --rate 100 --duration 120
 """
+from typing import Any
+
 from accelcal_ros.cli_args import angle_deg, float_in, int_in, nonnegative_int
 
 
-def register(subparsers, study_subparsers):
+def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add the ``record`` subcommand."""
     parser = subparsers.add_parser(
         'record', help='record raw accelerometer samples to CSV (sim or I2C)',

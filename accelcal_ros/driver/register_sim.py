@@ -14,7 +14,7 @@ from collections import deque
 import errno
 import struct
 import time
-from typing import List
+from typing import Any, Callable, List
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
@@ -26,7 +26,9 @@ _RATES = {code: rate for rate, code in reg.RATE_CODES.items()}
 class SimulatedAdxl345Bus:
     """smbus2-like bus with one simulated ADXL345 at ``address``."""
 
-    def __init__(self, source, address=0x53, clock=time.monotonic, devid=reg.DEVID_VALUE):
+    def __init__(self, source: Any, address: int = 0x53,
+                 clock: Callable[[], float] = time.monotonic,
+                 devid: int = reg.DEVID_VALUE) -> None:
         self.source = source
         self.address = address
         self.clock = clock

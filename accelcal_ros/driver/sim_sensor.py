@@ -15,12 +15,12 @@ so the analog noise drawn before quantisation has variance ``sigma^2 - LSB^2 / 1
 Readings are quantised to the full-resolution LSB (3.9 mg) and clipped to +-range.
 Everything is deterministic for a given ``seed`` (samples drawn in order).
 """
-from typing import Iterable, Tuple
+from typing import Iterable, Optional, Tuple
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import specific_force_from_roll_pitch
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB, RANGES_G
-from accelcal_ros.sensor.model import paper_a_model
+from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
@@ -58,8 +58,9 @@ def poses_from_flat_list(values: Iterable[float]) -> np.ndarray:
 class SimulatedAdxl345:
     """Deterministic simulated ADXL345 following a dwell/move schedule of orientations."""
 
-    def __init__(self, truth=None, rate_hz=100.0, range_g=16, poses_deg=None,
-                 dwell_s=3.0, move_s=1.0, seed=0, noise_scale=1.0):
+    def __init__(self, truth: Optional[SensorModel] = None, rate_hz: float = 100.0,
+                 range_g: int = 16, poses_deg: Optional[ArrayLike] = None, dwell_s: float = 3.0,
+                 move_s: float = 1.0, seed: int = 0, noise_scale: float = 1.0) -> None:
         if range_g not in RANGES_G:
             raise InputError(f'range_g must be one of {RANGES_G}, got {range_g}')
         if rate_hz <= 0 or dwell_s <= 0 or move_s < 0:

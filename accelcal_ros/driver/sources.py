@@ -12,9 +12,10 @@ Every source has the same polling interface (pure, no ROS):
 """
 from dataclasses import dataclass, field
 import time
-from typing import Optional
+from typing import Any, Callable, Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
+from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.sensor.recording import load_recording
 from accelcal_ros.sensor.units import mps2_to_g
 import numpy as np
@@ -63,7 +64,8 @@ class SimSource:
     rates (at 3200 Hz a poll every 1.25 ms publishes four samples).
     """
 
-    def __init__(self, sensor, clock=time.time, max_batch_period_s=0.001):
+    def __init__(self, sensor: SimulatedAdxl345, clock: Callable[[], float] = time.time,
+                 max_batch_period_s: float = 0.001) -> None:
         self.sensor = sensor
         self.clock = clock
         self.period = 1.0 / sensor.rate_hz
@@ -109,8 +111,9 @@ class I2cSource:
     host too slow) are counted.
     """
 
-    def __init__(self, device, rate_hz, range_g, use_fifo, clock=time.time,
-                 min_backoff_s=0.002, max_backoff_s=0.5):
+    def __init__(self, device: Adxl345, rate_hz: float, range_g: int, use_fifo: bool,
+                 clock: Callable[[], float] = time.time, min_backoff_s: float = 0.002,
+                 max_backoff_s: float = 0.5) -> None:
         self.device = device
         self.rate_hz = float(rate_hz)
         self.range_g = range_g
@@ -131,7 +134,7 @@ class I2cSource:
 
     @classmethod
     def from_bus_number(cls, bus_number: int, address: int, rate_hz: float, range_g: int,
-                        use_fifo: bool, **kwargs) -> 'I2cSource':
+                        use_fifo: bool, **kwargs: Any) -> 'I2cSource':
         """Open ``/dev/i2c-<bus_number>`` and wrap the ADXL345 at ``address``."""
         bus = open_smbus(bus_number)
         return cls(Adxl345(bus, address, bus_number), rate_hz, range_g, use_fifo, **kwargs)
@@ -185,7 +188,8 @@ class ReplaySource:
     Stamps keep the recorded spacing, shifted to start at the replay's start time.
     """
 
-    def __init__(self, path, realtime=True, clock=time.time, chunk=500):
+    def __init__(self, path: str, realtime: bool = True,
+                 clock: Callable[[], float] = time.time, chunk: int = 500) -> None:
         self.t, accel = load_recording(path)
         self.samples_g = mps2_to_g(accel)
         self.realtime = realtime

@@ -167,7 +167,7 @@ def _stats_of_blocks(blocks) -> Optional[SegmentStats]:
 class StillSegment:
     """One still segment being built: its blocks, an id, and whether it has ended."""
 
-    def __init__(self, segment_id: int, blocks) -> None:
+    def __init__(self, segment_id: int, blocks: Sequence[_Block]) -> None:
         self.segment_id = segment_id
         self.blocks = list(blocks)
         self.ended = False
