@@ -39,7 +39,8 @@ def damage_errors() -> Tuple[Type[BaseException], ...]:
     the message deserialiser raise on damaged or cut-short data: an invalid length
     (``ValueError``, ``OverflowError``), a missing index entry (``KeyError``,
     ``IndexError``), a failed internal check (``AssertionError``), bad text
-    (``UnicodeDecodeError``), I/O errors.
+    (``UnicodeDecodeError``), I/O errors, a damaged size field read as gigabytes
+    (``MemoryError``).
     """
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError, WriterError as Ros1WriterError
@@ -50,7 +51,7 @@ def damage_errors() -> Tuple[Type[BaseException], ...]:
     errors: List[Type[BaseException]] = [
         AnyReaderError, Ros1ReaderError, Ros1WriterError, Ros2ReaderError, Ros2WriterError,
         SerdeError, TypesysError, OSError, EOFError, ValueError, ArithmeticError, LookupError,
-        AssertionError, RuntimeError, struct.error, sqlite3.Error]
+        AssertionError, RuntimeError, MemoryError, struct.error, sqlite3.Error]
     for module, name in (('apsw', 'Error'), ('backports.zstd', 'ZstdError'),
                          ('compression.zstd', 'ZstdError')):
         try:
