@@ -1,0 +1,43 @@
+"""Parameters of the ``rig_calibration`` node (pure specifications)."""
+from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.rig.board import parse_board_size
+
+
+def _board_ok(value: str) -> object:
+    try:
+        cols, rows = parse_board_size(value)
+    except ValueError as exc:
+        return str(exc)
+    if (cols + rows) % 2 == 0 or min(cols, rows) < 3:
+        return 'inner corners COLSxROWS, at least 3 each, one even and one odd (e.g. 9x6)'
+    return None
+
+
+def _names_ok(value: list) -> object:
+    if not value or len(set(value)) != len(value) or not all(value):
+        return 'give one or more distinct camera names'
+    return None
+
+
+RIG_CALIBRATION_PARAMS = (
+    ParamSpec('cameras', ['cam0', 'cam1', 'cam2'], 'camera names: subscribes '
+              '<name>/image_raw for each; the first (or reference) carries the IMU',
+              kind='string_array', validator=_names_ok, read_only=True),
+    ParamSpec('board', '9x6', 'chessboard inner corners COLSxROWS as OpenCV counts them',
+              validator=_board_ok, read_only=True),
+    ParamSpec('square_m', 0.025, 'chessboard square side', minimum=0.001, maximum=1.0,
+              unit='m', read_only=True),
+    ParamSpec('capture_dir', 'rig_capture', 'directory the poses are written to '
+              '(poseNN/<camera>.png, poseNN/imu.csv)', read_only=True),
+    ParamSpec('output_file', 'rig.yaml', 'rig file written by finish (report and plot '
+              'beside it)'),
+    ParamSpec('reference', '', 'reference camera (empty: the first name)'),
+    ParamSpec('calibration_file', '', 'accelerometer calibration applied to the IMU '
+              '(empty = none)', read_only=True),
+    ParamSpec('auto_capture', True, 'capture a pose each time the rig rests with the board '
+              'in view'),
+    ParamSpec('min_still_s', 1.0, 'stillness needed before a capture', minimum=0.2,
+              maximum=30.0, unit='s'),
+    ParamSpec('status_period_s', 1.0, 'period of the rig_calibration/status message',
+              minimum=0.1, maximum=60.0, unit='s', read_only=True),
+)
