@@ -31,6 +31,7 @@ setup(
             'stitcher = accelcal_ros.panorama.node:main',
             'p2p = accelcal_ros.p2p.node:main',
             'lidar_calibration = accelcal_ros.lidar.calibration_node:main',
+            'rig_calibration = accelcal_ros.rig.node:main',
             'cloud_assembler = accelcal_ros.lidar.assembler_node:main',
             'accelcal = accelcal_ros.cli:main',
         ],
