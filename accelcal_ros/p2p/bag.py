@@ -9,7 +9,7 @@ rad) or, from a sensor_msgs/Imu topic, the roll/pitch of the calibrated specific
 (:class:`~accelcal_ros.sensor.tilt.TiltEstimator`, paper A eq. 7, the calibration
 applied when given). Times are absolute seconds (header stamps unless ``--stamp receive``).
 """
-from typing import Iterator, Optional, Tuple
+from typing import Any, Dict, Iterable, Iterator, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
@@ -17,8 +17,11 @@ from accelcal_ros.recording.bag import BagReader
 from accelcal_ros.recording.streams import message_time_s
 import numpy as np
 
+if TYPE_CHECKING:
+    from accelcal_ros.p2p.pipeline import FrameResult, P2PPipeline
 
-def first_camera_info(bag: BagReader, topic: Optional[str]) -> dict:
+
+def first_camera_info(bag: BagReader, topic: Optional[str]) -> Dict[str, Any]:
     """Return :func:`~accelcal_ros.recording.convert.camera_info` of the first valid message."""
     name = bag.select_topic(topic, (convert.CAMERA_INFO,), '--camera-info')
     reason = ''
@@ -30,7 +33,8 @@ def first_camera_info(bag: BagReader, topic: Optional[str]) -> dict:
     raise InputError(f'{name}: no usable CameraInfo ({reason})')
 
 
-def run_p2p(bag: BagReader, pipeline, image_topic: Optional[str], attitude) -> Iterator:
+def run_p2p(bag: BagReader, pipeline: 'P2PPipeline', image_topic: Optional[str],
+            attitude: Tuple[np.ndarray, np.ndarray, np.ndarray]) -> Iterator['FrameResult']:
     """
     Yield the :class:`~accelcal_ros.p2p.pipeline.FrameResult` of every image of a topic.
 
@@ -49,7 +53,8 @@ def run_p2p(bag: BagReader, pipeline, image_topic: Optional[str], attitude) -> I
             yield from pipeline.add_attitude(float(t_att[fed]), roll[fed], pitch[fed])
             fed += 1
         image = convert.image_array(message.msg, message.msgtype)
-        grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        grey: np.ndarray = (image if image.ndim == 2
+                            else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY))
         if grey.dtype != np.uint8:
             grey = (grey >> 8).astype(np.uint8)
         frame_id = str(message.msg.header.frame_id)
@@ -59,7 +64,7 @@ def run_p2p(bag: BagReader, pipeline, image_topic: Optional[str], attitude) -> I
         yield pipeline._process(*pending)
 
 
-def results_csv(results) -> Tuple[str, int, int]:
+def results_csv(results: Iterable['FrameResult']) -> Tuple[str, int, int]:
     """Return ``(CSV text, solved, total)``: camera position (object frame, m), yaw, range."""
     lines = ['t,x_m,y_m,z_m,yaw_deg,range_m,roll_deg,pitch_deg,reason']
     solved = total = 0

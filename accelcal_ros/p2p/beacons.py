@@ -104,7 +104,7 @@ class BeaconDetection:
 
     def quality(self) -> Dict[str, Any]:
         """Return a flat dict of quality figures (diagnostics key/values)."""
-        out = {'candidates': len(self.blobs), 'brightest': self.brightest}
+        out: Dict[str, Any] = {'candidates': len(self.blobs), 'brightest': self.brightest}
         out.update({f'rejected_{k}': v for k, v in self.rejected.items()})
         for index, blob in enumerate(self.blobs[:2] if self.ok else []):
             name = f'M{index + 1}'
@@ -112,7 +112,7 @@ class BeaconDetection:
             out[f'{name}_peak'] = blob.peak
             out[f'{name}_saturated_px'] = blob.saturated_px
             out[f'{name}_elongation'] = round(blob.elongation, 3)
-        if self.ok:
+        if self.ok and self.uv is not None:
             out['separation_px'] = float(np.hypot(*(self.uv[0] - self.uv[1])))
         return out
 

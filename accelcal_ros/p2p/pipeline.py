@@ -11,13 +11,13 @@ solutions are resolved by continuity with the last pose when that is recent enou
 otherwise reported.
 """
 from dataclasses import dataclass, field
-from typing import Any, List, Mapping, Optional, Sequence
+from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
 from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.frames import rotation_matrix_from_list
-from accelcal_ros.p2p.beacons import detect_beacons, DetectorSettings
-from accelcal_ros.p2p.solver import down_from_roll_pitch, solve
+from accelcal_ros.p2p.beacons import BeaconDetection, detect_beacons, DetectorSettings
+from accelcal_ros.p2p.solver import down_from_roll_pitch, P2PSolution, solve
 from accelcal_ros.rosutil.stamp_sync import StampMatcher
 import numpy as np
 
@@ -38,13 +38,13 @@ class FrameResult:
 
     stamp_s: float
     frame_id: str
-    solution: object = None
+    solution: Optional[P2PSolution] = None
     reason: str = ''
-    candidates: list = field(default_factory=list)
-    detection: object = None
-    attitude: tuple = None
+    candidates: List[P2PSolution] = field(default_factory=list)
+    detection: Optional[BeaconDetection] = None
+    attitude: Optional[Tuple[float, float]] = None
     resolved_by_continuity: bool = False
-    tag: object = None
+    tag: Any = None
 
 
 class P2PPipeline:
@@ -52,11 +52,11 @@ class P2PPipeline:
 
     def __init__(self, values: Mapping[str, Any]) -> None:
         self.values = dict(values)
-        self.camera = None
+        self.camera: Optional[CameraModel] = None
         self.camera_reason = 'no camera_info received yet'
         self.attitudes = StampMatcher(['attitude'], depth=400)
-        self.pending = None
-        self.last_pose = None
+        self.pending: Optional[Tuple[float, str, np.ndarray, Any]] = None
+        self.last_pose: Optional[Tuple[float, P2PSolution]] = None
         self.configure(self.values)
 
     def configure(self, values: Mapping[str, Any]) -> None:
@@ -97,7 +97,7 @@ class P2PPipeline:
             return [self._process(*pending)]
         return []
 
-    def _matched(self, stamp_s):
+    def _matched(self, stamp_s: float) -> Optional[Tuple[float, float]]:
         hit = self.attitudes.nearest(stamp_s, self.values['attitude_tolerance_s'])['attitude']
         return None if hit is None else hit[1]
 
@@ -109,7 +109,7 @@ class P2PPipeline:
         Returns the list of finished :class:`FrameResult` (possibly empty while waiting,
         or two when a newer image displaces an older waiting one).
         """
-        results = []
+        results: List[FrameResult] = []
         if self.pending is not None:
             results.append(self._process(*self.pending))
             self.pending = None
@@ -122,7 +122,8 @@ class P2PPipeline:
         results.append(self._process(stamp_s, frame_id, grey, tag))
         return results
 
-    def _process(self, stamp_s, frame_id, grey, tag=None):
+    def _process(self, stamp_s: float, frame_id: str, grey: np.ndarray,
+                 tag: Any = None) -> FrameResult:
         result = FrameResult(stamp_s, frame_id, tag=tag)
         if self.camera is None:
             result.reason = self.camera_reason
@@ -155,8 +156,8 @@ class P2PPipeline:
             result.reason = f'detection failed: {exc}'
             return result
         result.detection = detection
-        if not detection.ok:
-            result.reason = detection.reason
+        if not detection.ok or detection.rays is None:
+            result.reason = detection.reason or 'no rays (no camera matrix)'
             return result
         try:
             candidates = solve(detection.rays, self.points, down)
@@ -178,13 +179,14 @@ class P2PPipeline:
                 result.reason = (f'ambiguous: two valid solutions ({ranges}) and no pose '
                                  f'within {max_age:g} s to choose by continuity')
                 return result
-        self.last_pose = (stamp_s, result.solution)
+        if result.solution is not None:
+            self.last_pose = (stamp_s, result.solution)
         return result
 
 
-def _pose_distance(solution, reference):
+def _pose_distance(solution: P2PSolution, reference: P2PSolution) -> float:
     """Return a unitless distance between two poses (relative translation + rotation angle)."""
-    scale = max(np.linalg.norm(reference.translation), 1e-9)
-    dt = np.linalg.norm(solution.translation - reference.translation) / scale
+    scale = max(float(np.linalg.norm(reference.translation)), 1e-9)
+    dt = float(np.linalg.norm(solution.translation - reference.translation)) / scale
     cos_angle = (np.trace(solution.rotation @ reference.rotation.T) - 1.0) / 2.0
     return dt + float(np.arccos(np.clip(cos_angle, -1.0, 1.0)))

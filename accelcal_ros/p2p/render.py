@@ -85,10 +85,12 @@ def render_emitters(points: ArrayLike, rotation: np.ndarray, translation: ArrayL
 
     if sigma_px <= 0:
         raise InputError(f'sigma_px must be positive, got {sigma_px}')
-    uv, depth = project(points, rotation, translation, camera)
+    uv, depth = project(np.asarray(points, dtype=float), rotation,
+                        np.asarray(translation, dtype=float), camera)
     visible = uv[depth > 0.0]
-    if len(extra_uv):
-        visible = np.concatenate([visible, np.asarray(extra_uv, dtype=float).reshape(-1, 2)])
+    extra = np.asarray(extra_uv, dtype=float).reshape(-1, 2)
+    if len(extra):
+        visible = np.concatenate([visible, extra])
     image = draw_spots((camera.height, camera.width), visible, sigma_px, peak, background)
     if blur_sigma_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur_sigma_px)

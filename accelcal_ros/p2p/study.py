@@ -209,7 +209,7 @@ def run_study(trials: int = 10000, seed: int = 0, geometry: 'StudyGeometry' = St
     rng = np.random.default_rng(seed)
     scenes = random_scenes(trials, rng, geometry)
     rows = {}
-    models = paper_models()
+    models: Dict[str, Any] = dict(paper_models())
     models['K=300 pitch only'] = TiltOffset(0.0, PAPER_LEVEL_PITCH_ERROR_DEG['K=300'])
     models['K=100 pitch only'] = TiltOffset(0.0, PAPER_LEVEL_PITCH_ERROR_DEG['K=100'])
     if own_models:

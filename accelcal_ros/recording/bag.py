@@ -96,7 +96,7 @@ class BagMessage:
     topic: str
     msgtype: str
     receive_ns: int
-    msg: object
+    msg: Any  # a rosbags message object (None when not decoded)
     raw: bytes = b''
 
     @property

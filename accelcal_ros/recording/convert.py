@@ -74,7 +74,7 @@ def image_array(msg: Any, msgtype: str = IMAGE) -> np.ndarray:
                               encodings=('rgb8', 'bgr8', 'mono8', 'mono16'))
 
 
-def camera_info(msg: Any) -> Dict[str, object]:
+def camera_info(msg: Any) -> Dict[str, Any]:
     """Return ``{'K' (3, 3), 'D' (n,), 'P' (3, 4), 'width', 'height', 'distortion_model'}``."""
     k = np.asarray(getattr(msg, 'k', getattr(msg, 'K', None)), dtype=float).reshape(3, 3)
     d = np.asarray(getattr(msg, 'd', getattr(msg, 'D', ())), dtype=float).reshape(-1)
