@@ -1,0 +1,78 @@
+"""Graph test: ``rig_calibration`` as a process, fed rendered camera frames and gravity."""
+import os
+import time
+
+from accelcal_ros.rig.render import default_truth, imu_samples, plan_poses, Renderer
+from accelcal_ros.rosutil.images import array_to_image_msg
+from accelcal_ros.rosutil.stamps import seconds_to_stamp
+from builtin_interfaces.msg import Time
+import numpy as np
+import pytest
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image, Imu
+from std_msgs.msg import Header, String
+from std_srvs.srv import Trigger
+import yaml
+
+
+def _imu(t, accel):
+    msg = Imu()
+    msg.header.stamp = seconds_to_stamp(t, Time)
+    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = \
+        (float(v) for v in accel)
+    msg.angular_velocity_covariance[0] = -1.0
+    return msg
+
+
+@pytest.mark.graph
+def test_rig_calibration_node_captures_reports_and_refuses_early_finish(graph, tmp_path):
+    """Two still poses captured automatically; status counts views; finish says what to add."""
+    truth = default_truth()
+    poses = plan_poses(truth, 2)
+    renderer = Renderer(truth)
+    capture_dir = tmp_path / 'capture'
+    graph.start('rig_calibration', params={
+        'cameras': truth.names, 'board': '11x8', 'square_m': 0.025,
+        'capture_dir': str(capture_dir), 'output_file': str(tmp_path / 'rig.yaml'),
+        'min_still_s': 0.5, 'status_period_s': 0.3})
+    status = graph.collect(String, 'rig_calibration/status', qos=10)
+    imu_pub = graph.node.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
+    image_pubs = [graph.node.create_publisher(Image, f'{c}/image_raw', qos_profile_sensor_data)
+                  for c in truth.names]
+    deadline = time.monotonic() + 15.0
+    while time.monotonic() < deadline and not all(
+            p.get_subscription_count() for p in [imu_pub] + image_pubs):
+        time.sleep(0.05)
+    rng = np.random.default_rng(0)
+    t_sim = 100.0
+    for pose in poses:
+        images = [renderer.render(pose, i) for i in range(3)]
+        samples = imu_samples(truth, pose, rng, duration_s=2.0)
+        moving = imu_samples(truth, pose, rng, duration_s=0.4, motion_m_s2=3.0)
+        start = time.monotonic()
+        for k, a in enumerate(np.vstack([moving['a'], samples['a']])):
+            t = t_sim + 0.01 * k
+            imu_pub.publish(_imu(t, a))
+            if k % 10 == 5:
+                for pub, image in zip(image_pubs, images):
+                    header = Header(stamp=seconds_to_stamp(t, Time), frame_id='camera')
+                    pub.publish(array_to_image_msg(image, 'mono8', Image, header))
+            lag = 0.01 * k - (time.monotonic() - start)
+            if lag > 0:
+                time.sleep(lag)
+        t_sim += 0.01 * (k + 1)
+    deadline = time.monotonic() + 20.0
+    latest = {}
+    while time.monotonic() < deadline:
+        messages = status.snapshot()[0]
+        latest = yaml.safe_load(messages[-1].data) if messages else {}
+        if latest.get('poses', 0) >= 2:
+            break
+        time.sleep(0.2)
+    assert latest.get('poses') == 2, latest
+    assert sorted(os.listdir(capture_dir)) == ['pose00', 'pose01']
+    views = [latest['cameras'][c]['views'] for c in truth.names]
+    assert views == [sum(i in p.visible for p in poses) for i in range(3)]
+    assert 'show' in latest['next']
+    finish = graph.call(Trigger, 'rig_calibration/finish', timeout=60.0)
+    assert not finish.success and 'need at least 4' in finish.message
