@@ -185,3 +185,17 @@ def test_two_outputs_with_one_path_are_refused(tmp_path, capsys):
     assert main(['calibrate', str(rec), '-o', str(out), '--plot', str(out)]) == 1
     err = capsys.readouterr().err
     assert 'two outputs' in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_p2p_solve_input_file_with_bytes_that_are_not_utf8(tmp_path, capsys):
+    """A line of bytes that are not UTF-8 gets its error; the following lines are solved."""
+    import json
+
+    good = json.dumps({'uv': [[700, 500], [500, 520]], 'K': [1000, 0, 640, 0, 1000, 480, 0,
+                                                             0, 1],
+                       'points': [[0, 0, 0], [1, 0, 0]], 'down': [0, 0.8, 0.6]})
+    path = tmp_path / 'problems.jsonl'
+    path.write_bytes(b'\xff\xfe{\n' + good.encode() + b'\n')
+    assert main(['p2p-solve', '--input', str(path)]) == 1
+    out = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(out) == 2 and 'JSON' in out[0]['error'] and out[1]['solutions']

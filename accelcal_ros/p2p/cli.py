@@ -219,7 +219,8 @@ def _solve_main(args):
     imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
 
     try:
-        stream = sys.stdin if args.input == '-' else open(args.input)
+        # bytes that are not UTF-8 spoil only their line (its JSON error), as on stdin
+        stream = sys.stdin if args.input == '-' else open(args.input, errors='replace')
     except OSError as exc:
         raise InputError(f'cannot read {args.input}: {exc.strerror}') from None
     status = 0
