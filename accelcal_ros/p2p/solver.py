@@ -55,27 +55,45 @@ it is the heading of the image's top edge direction (looking down) or bottom edg
 direction (looking up): the limit of a camera pitched towards vertical.
 """
 from dataclasses import dataclass
+from enum import IntEnum
 import math
-from typing import Any, Dict, List, Union
+from typing import Any, Dict, List, Tuple, Union
 
 from accelcal_ros.errors import GeometryError, InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, specific_force_from_roll_pitch
 import numpy as np
 from numpy.typing import ArrayLike
 
-OK = 0
-NOT_FINITE = 1
-ZERO_BASELINE = 2
-VERTICAL_LINE = 3
-SAME_RAY = 4
-LEVEL_DEGENERATE = 5
-LEVEL_INCONSISTENT = 6
-NO_REAL_SOLUTION = 7
-BEHIND_CAMERA = 8
-BAD_DOWN = 9
-RAY_BACKWARD = 10
 
-REASONS = {
+class SolveStatus(IntEnum):
+    """Outcome of one P2P problem (:attr:`BatchSolution.status` holds these codes)."""
+
+    OK = 0
+    NOT_FINITE = 1
+    ZERO_BASELINE = 2
+    VERTICAL_LINE = 3
+    SAME_RAY = 4
+    LEVEL_DEGENERATE = 5
+    LEVEL_INCONSISTENT = 6
+    NO_REAL_SOLUTION = 7
+    BEHIND_CAMERA = 8
+    BAD_DOWN = 9
+    RAY_BACKWARD = 10
+
+
+OK = SolveStatus.OK
+NOT_FINITE = SolveStatus.NOT_FINITE
+ZERO_BASELINE = SolveStatus.ZERO_BASELINE
+VERTICAL_LINE = SolveStatus.VERTICAL_LINE
+SAME_RAY = SolveStatus.SAME_RAY
+LEVEL_DEGENERATE = SolveStatus.LEVEL_DEGENERATE
+LEVEL_INCONSISTENT = SolveStatus.LEVEL_INCONSISTENT
+NO_REAL_SOLUTION = SolveStatus.NO_REAL_SOLUTION
+BEHIND_CAMERA = SolveStatus.BEHIND_CAMERA
+BAD_DOWN = SolveStatus.BAD_DOWN
+RAY_BACKWARD = SolveStatus.RAY_BACKWARD
+
+REASONS: Dict[SolveStatus, str] = {
     OK: 'ok',
     NOT_FINITE: 'input contains NaN or infinity',
     ZERO_BASELINE: 'the two emitters coincide (zero baseline): give two distinct points',
@@ -94,7 +112,7 @@ REASONS = {
     BAD_DOWN: 'the vertical ("down") vector has zero length',
     RAY_BACKWARD: 'an image ray points backwards (z <= 0 in the camera frame)',
 }
-"""Human-readable reason of each status code."""
+"""Human-readable reason of each :class:`SolveStatus`."""
 
 _SAME_RAY_SIN = 1e-12
 _VERTICAL_RELATIVE = 1e-9
@@ -140,7 +158,7 @@ class BatchResult:
 
     ``rotations`` ``(N, 2, 3, 3)``, ``translations`` ``(N, 2, 3)``, ``yaw`` ``(N, 2)``,
     ``depths`` ``(N, 2, 2)``: NaN where ``valid`` ``(N, 2)`` is False. ``status`` ``(N,)``
-    holds the code of :data:`REASONS` (``OK`` when at least one slot is valid). Valid
+    holds :class:`SolveStatus` codes (``OK`` when at least one slot is valid). Valid
     slots come first (slot 0 is valid whenever any is).
     """
 
@@ -157,7 +175,7 @@ class BatchResult:
 
     def reason(self, index: int) -> str:
         """Return the text reason of problem ``index``."""
-        return REASONS[int(self.status[index])]
+        return REASONS[SolveStatus(int(self.status[index]))]
 
     def solutions(self, index: int) -> List['P2PSolution']:
         """Return the valid :class:`P2PSolution` list of problem ``index``."""
@@ -396,7 +414,8 @@ def solve(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> List['P2PSolut
     return solutions
 
 
-def _solve_one(rays, points, down):
+def _solve_one(rays: List[List[float]], points: List[List[float]], down: List[float]
+               ) -> Tuple[SolveStatus, List['P2PSolution']]:
     """
     Scalar form of :func:`solve_batch` for one problem (plain floats: ~13x faster).
 
