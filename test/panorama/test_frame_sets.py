@@ -166,7 +166,8 @@ def test_not_finite_attitude_and_rejected_frames_are_said_once():
 def test_the_worker_thread_hands_sets_on_and_survives_errors():
     """The worker thread polls on wake(), calls stitch, passes exceptions to on_error."""
     policy, _ = _policy(n=1)
-    got, errors, done = [], [], threading.Event()
+    got, errors = [], []
+    failed, done = threading.Event(), threading.Event()
 
     def stitch(frame_set):
         got.append(frame_set.stamp_s)
@@ -174,21 +175,20 @@ def test_the_worker_thread_hands_sets_on_and_survives_errors():
             raise ValueError('first fails')
         done.set()
 
+    def on_error(exc):
+        errors.append(exc)
+        failed.set()
+
     clock = [100.0]
-    worker = FrameSetWorker(policy, stitch, errors.append, clock=lambda: clock[0])
+    worker = FrameSetWorker(policy, stitch, on_error, clock=lambda: clock[0])
     try:
-        for k in range(2):
-            clock[0] += 0.1
-            _feed(policy, 10.0 + k, clock[0] + k, cameras=(0,))
-            clock[0] += k
-            worker.wake()
-            if k == 0:
-                deadline = threading.Event()
-                for _ in range(100):
-                    if errors:
-                        break
-                    deadline.wait(0.02)
-        assert done.wait(5.0)
+        _feed(policy, 10.0, 100.0, cameras=(0,))
+        worker.wake()
+        assert failed.wait(30.0)
+        clock[0] = 101.0
+        _feed(policy, 11.0, 101.0, cameras=(0,))
+        worker.wake()
+        assert done.wait(30.0)
     finally:
         worker.close()
     assert got == [10.0, 11.0] and isinstance(errors[0], ValueError)
