@@ -19,6 +19,7 @@ NODE_PARAMS: Dict[str, Tuple[str, str]] = {
     'p2p': ('accelcal_ros.p2p.params', 'P2P_PARAMS'),
     'lidar_calibration': ('accelcal_ros.lidar.params', 'LIDAR_CALIBRATION_PARAMS'),
     'cloud_assembler': ('accelcal_ros.lidar.params', 'CLOUD_ASSEMBLER_PARAMS'),
+    'rig_calibration': ('accelcal_ros.rig.params', 'RIG_CALIBRATION_PARAMS'),
 }
 """Node (and executable) name -> (module, attribute) of its ParamSpec list."""
 

@@ -37,13 +37,26 @@ def _start_overrides(node):
     return {}
 
 
+def _call(graph, srv_type, name, request=None):
+    """
+    Call a service; once more if no answer came.
+
+    A request sent just after the service appeared can lose its answer while the reply
+    path is still being matched (DDS discovery, worse on a loaded machine).
+    """
+    try:
+        return graph.call(srv_type, name, request, timeout=10.0)
+    except TimeoutError:
+        return graph.call(srv_type, name, request, timeout=20.0)
+
+
 def _dump(graph, node):
     """Do what ``ros2 param dump`` does: return {name: (type, python value)}."""
-    listed = graph.call(ListParameters, f'/{node}/list_parameters', timeout=20.0)
+    listed = _call(graph, ListParameters, f'/{node}/list_parameters')
     names = list(listed.result.names)
     request = GetParameters.Request()
     request.names = names
-    answer = graph.call(GetParameters, f'/{node}/get_parameters', request)
+    answer = _call(graph, GetParameters, f'/{node}/get_parameters', request)
     assert len(answer.values) == len(names), f'{node}: GetParameters answered nothing'
     return {n: (v.type, parameter_value_to_python(v)) for n, v in zip(names, answer.values)}
 
