@@ -67,7 +67,7 @@ def rotation_from_rpy_radians(roll: float, pitch: float, yaw: float = 0.0) -> np
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
 
 
-def rpy_radians_from_rotation(rotation: ArrayLike) -> np.ndarray:
+def rpy_radians_from_rotation(rotation: ArrayLike) -> Tuple[float, float, float]:
     """Inverse of :func:`rotation_from_rpy_radians`: ``(roll, pitch, yaw)`` in radians."""
     r = np.asarray(rotation, dtype=float)
     pitch = np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2]))

@@ -15,7 +15,7 @@ pointing up reads +1 g), so "+z up" is the sensor lying level and "-z up" upside
 * :func:`recommended_directions`: the fixed layouts the documentation recommends.
 """
 import itertools
-from typing import List, Sequence
+from typing import List, Sequence, Tuple, Union
 
 from accelcal_ros.frames import roll_pitch_from_specific_force, specific_force_from_roll_pitch
 from accelcal_ros.sensor.model import SensorModel
@@ -74,7 +74,7 @@ def coverage_fraction(directions: ArrayLike, radius_deg: float = 40.0) -> float:
     return float(np.mean(closest >= np.cos(np.radians(radius_deg))))
 
 
-def direction_spread_deg(directions: ArrayLike) -> float:
+def direction_spread_deg(directions: ArrayLike) -> Tuple[float, np.ndarray]:
     """Return ``(largest angle from the mean direction in deg, mean direction)``."""
     directions = unit_directions(directions)
     mean = directions.sum(axis=0)
@@ -111,6 +111,7 @@ def suggest_directions(captured: ArrayLike, count: int = 3,
     Greedy farthest-point choice among :data:`CANDIDATES`; candidates within
     ``min_separation_deg`` of a captured or chosen direction are never suggested.
     """
+    captured = np.asarray(captured, dtype=float).reshape(-1, 3)
     chosen = list(unit_directions(captured)) if len(captured) else []
     names = []
     for _ in range(count):
@@ -126,8 +127,9 @@ def suggest_directions(captured: ArrayLike, count: int = 3,
     return names
 
 
-def tilt_errors_rad(truth: SensorModel, estimates: Sequence[SensorModel],
-                    grid: ArrayLike = TEST_GRID) -> np.ndarray:
+def tilt_errors_rad(truth: SensorModel,
+                    estimates: Union[Sequence[SensorModel], Tuple[np.ndarray, ...]],
+                    grid: ArrayLike = TEST_GRID) -> Tuple[np.ndarray, np.ndarray]:
     """
     Roll and pitch errors (rad) of calibrations over the test orientations.
 
@@ -142,6 +144,7 @@ def tilt_errors_rad(truth: SensorModel, estimates: Sequence[SensorModel],
         scale = np.array([e.scale for e in estimates])
         bias = np.array([e.bias for e in estimates])
         mis = np.array([e.misalignment for e in estimates])
+    grid = np.asarray(grid, dtype=float)
     force = specific_force_from_roll_pitch(grid[:, 0], grid[:, 1])
     raw = truth.distort(force)  # (G, 3)
     m_yz, m_zy, m_zx = mis[:, 0], mis[:, 1], mis[:, 2]

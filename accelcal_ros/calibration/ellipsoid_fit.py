@@ -75,7 +75,7 @@ def model_to_params(sensor_model: SensorModel, model: str) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def residuals_and_jacobian(params: ArrayLike, raw_g: ArrayLike,
+def residuals_and_jacobian(params: np.ndarray, raw_g: np.ndarray,
                            model: str) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return eq. (5) residuals ``r_k`` (K,) and their Jacobian (K, p) at ``params``.

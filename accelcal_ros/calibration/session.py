@@ -16,7 +16,7 @@ Order of calls: ``start`` -> samples / ``capture_now`` -> ``finish`` or ``cancel
 out of order raise :class:`~accelcal_ros.errors.CalibrationError` saying what to call.
 """
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Set, Tuple
 
 from accelcal_ros.calibration.coverage import coverage_fraction, suggest_directions
 from accelcal_ros.calibration.ellipsoid_fit import (check_model, fit_ellipsoid, FitResult,
@@ -95,9 +95,9 @@ class Calibrator:
         check_model(self.config.model)
         self.active = False
         self.captures: List[Capture] = []
-        self.detector = None
-        self._close_segments = set()
-        self._progress_cache = None
+        self.detector = self._new_detector()
+        self._close_segments: Set[int] = set()
+        self._progress_cache: Optional[Progress] = None
 
     # -- session control ---------------------------------------------------------------
     def start(self) -> None:
@@ -106,14 +106,17 @@ class Calibrator:
             raise CalibrationError(
                 f'a calibration session is already running ({len(self.captures)} positions); '
                 'call calibration/finish to fit it or calibration/cancel to discard it first')
-        cfg = self.config
-        self.detector = StillnessDetector(StillnessThresholds(
-            window_s=cfg.window_s, accel_std_g=cfg.still_threshold_g,
-            min_still_s=cfg.min_still_s, saturation_g=cfg.saturation_g))
+        self.detector = self._new_detector()
         self.captures = []
         self._close_segments = set()
         self._progress_cache = None
         self.active = True
+
+    def _new_detector(self) -> StillnessDetector:
+        cfg = self.config
+        return StillnessDetector(StillnessThresholds(
+            window_s=cfg.window_s, accel_std_g=cfg.still_threshold_g,
+            min_still_s=cfg.min_still_s, saturation_g=cfg.saturation_g))
 
     def cancel(self) -> int:
         """Discard the running session; refused if none is running."""
@@ -143,10 +146,10 @@ class Calibrator:
         """
         if not self.active:
             return []
-        t = np.atleast_1d(np.asarray(t, dtype=float)).tolist()
-        accel_g = np.asarray(accel_g, dtype=float).reshape(-1, 3).tolist()
+        t_list = np.atleast_1d(np.asarray(t, dtype=float)).tolist()
+        a_list = np.asarray(accel_g, dtype=float).reshape(-1, 3).tolist()
         events = []
-        for ti, ai in zip(t, accel_g):
+        for ti, ai in zip(t_list, a_list):
             events += self.add_sample(ti, ai)
         return events
 

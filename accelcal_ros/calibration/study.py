@@ -16,7 +16,7 @@ sensor) recomputed with the package's own model and angle code, see
 :func:`paper_worked_example`.
 """
 import time
-from typing import Callable, List, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from accelcal_ros.calibration.coverage import (recommended_directions, TEST_GRID, tilt_errors_rad,
                                                unit_directions)
@@ -27,7 +27,6 @@ from accelcal_ros.frames import (paper_roll_pitch, roll_pitch_from_specific_forc
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB
 from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
-from numpy.typing import ArrayLike
 
 SIM_RATE_HZ = 100.0
 """Sampling rate of the simulated captures: 1 s per position = 100 samples."""
@@ -48,9 +47,9 @@ def layout_directions(layout: str, positions: int, rng: np.random.Generator) -> 
     raise InputError(f'unknown layout {layout!r}; use recommended or random')
 
 
-def simulate_position_means(truth: SensorModel, directions: ArrayLike, samples: int,
-                            rng: np.random.Generator,
-                            rate_hz: float = SIM_RATE_HZ) -> Tuple[np.ndarray, np.ndarray]:
+def simulate_position_means(truth: SensorModel, directions: np.ndarray, samples: int,
+                            rng: np.random.Generator, rate_hz: float = SIM_RATE_HZ
+                            ) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     """
     Return mean raw readings (K, 3) in g and their noise of the mean (None for 1 sample).
 
@@ -251,7 +250,7 @@ def run_real_like(trials: int = 100, seed: int = 0,
                   say: Callable[..., None] = print) -> List[dict]:
     """Diagonal vs full model on a sensor with ~1 % cross-axis coupling; returns rows."""
     truth = paper_a_model(500)
-    truth = SensorModel(truth.scale, truth.bias, REAL_LIKE_MISALIGNMENT)
+    truth = SensorModel(truth.scale, truth.bias, np.array(REAL_LIKE_MISALIGNMENT))
     say(f'Real-like sensor: paper K=500 scale/bias plus misalignment '
         f'{list(REAL_LIKE_MISALIGNMENT)} rad (~1 % cross-axis coupling)')
     rows = []

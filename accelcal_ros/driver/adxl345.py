@@ -19,7 +19,7 @@ from collections import deque
 import errno
 import os
 import struct
-from typing import Any, Optional, Tuple
+from typing import Any, Deque, Optional, Tuple
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.errors import DeviceError, InputError
@@ -56,8 +56,8 @@ class Adxl345:
         self.bus = bus
         self.address = address
         self.bus_number = bus_number
-        self.rate_hz = None
-        self.range_g = None
+        self.rate_hz: Optional[float] = None
+        self.range_g: Optional[int] = None
         self.fifo = False
 
     def _where(self):
@@ -155,10 +155,10 @@ class FifoTimestamper:
         self.gain = float(gain)
         self.resync_s = float(resync_s)
         self.max_rate_error = float(max_rate_error)
-        self.last = None
+        self.last: Optional[float] = None
         self.measured_rate_hz = float('nan')
         self.resyncs = 0
-        self._reads = deque()   # (t_read, cumulative samples read)
+        self._reads: Deque[Tuple[float, int]] = deque()   # (t_read, cumulative samples)
         self._total = 0
 
     def restart(self) -> None:

@@ -14,7 +14,7 @@ from collections import deque
 import errno
 import struct
 import time
-from typing import Any, Callable, List
+from typing import Any, Callable, Deque, List, Optional
 
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
@@ -35,11 +35,11 @@ class SimulatedAdxl345Bus:
         self.devid = devid
         self.registers = {reg.BW_RATE: 0x0A, reg.DATA_FORMAT: 0x00, reg.POWER_CTL: 0x00,
                           reg.FIFO_CTL: 0x00}
-        self.fifo = deque(maxlen=reg.FIFO_DEPTH)
+        self.fifo: Deque[np.ndarray] = deque(maxlen=reg.FIFO_DEPTH)
         self.latest = np.zeros(3)
         self.overrun = False
         self.generated = 0
-        self._start = None
+        self._start: Optional[float] = None
         self._failures = 0
         self.transactions = 0
 

@@ -100,10 +100,10 @@ class SimulatedAdxl345:
         Dwell: the pose's attitude. Move: ``R(u) = R_a exp(u log(R_a^T R_b))`` (slerp) with
         the smoothstep profile ``u = 3w^2 - 2w^3`` of the elapsed fraction ``w``.
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        times: np.ndarray = np.atleast_1d(np.asarray(t, dtype=float))
         n = len(self.poses_deg)
-        cycle = np.floor_divide(t, self.period_s).astype(int)
-        phase = t - cycle * self.period_s
+        cycle = np.floor_divide(times, self.period_s).astype(int)
+        phase = times - cycle * self.period_s
         start = cycle % n
         end = (start + 1) % n
         w = np.clip((phase - self.dwell_s) / max(self.move_s, 1e-12), 0.0, 1.0)

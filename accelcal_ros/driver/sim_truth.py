@@ -24,7 +24,7 @@ def dwell_errors_deg(attitude_msgs: Sequence[Any], truth_msgs: Sequence[Any], ma
     truth = sorted((stamp_to_seconds(m.header.stamp), m.vector.x, m.vector.y)
                    for m in truth_msgs)
     by_stamp = {round(t, 6): k for k, (t, _, _) in enumerate(truth)}
-    dwells = {}
+    dwells: Dict[Tuple[float, float], list] = {}
     for msg in attitude_msgs:
         k = by_stamp.get(round(stamp_to_seconds(msg.header.stamp), 6))
         if k is None or k < margin or k + margin >= len(truth):

@@ -72,7 +72,7 @@ class SimSource:
         # samples per poll: 1 up to 1 kHz, then groups spanning about max_batch_period_s
         self.batch = max(1, int(np.ceil(max_batch_period_s / self.period - 1e-9)))
         self.stats = SourceStats()
-        self._t0 = None
+        self._t0 = 0.0   # set by start()
         self._next = 0
 
     def start(self) -> None:
@@ -129,7 +129,7 @@ class I2cSource:
             else self.period
         self.stats = SourceStats()
         self._stamper = FifoTimestamper(self.rate_hz)
-        self._next_poll = None
+        self._next_poll = 0.0   # set by start()
         self._backoff = 0.0
 
     @classmethod
@@ -196,7 +196,7 @@ class ReplaySource:
         self.clock = clock
         self.chunk = chunk
         self.stats = SourceStats()
-        self._t0 = None
+        self._t0 = 0.0   # set by start()
         self._next = 0
 
     def start(self) -> None:

@@ -24,7 +24,7 @@ boresight and the offline commands, so its format lives here, below them.
 from dataclasses import dataclass
 import datetime
 
-from typing import Optional
+from typing import Any, Optional
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
@@ -62,7 +62,7 @@ def _floats(values):
     return [float(round(v, 9)) for v in np.asarray(values, dtype=float).ravel()]
 
 
-def calibration_dict(result: object) -> dict:
+def calibration_dict(result: Any) -> dict:
     """Return the mapping written for a fit result (calibration's ``FitResult``)."""
     sm = result.sensor_model
     return {
@@ -88,7 +88,7 @@ def calibration_dict(result: object) -> dict:
     }
 
 
-def save_calibration(path: str, result: object) -> None:
+def save_calibration(path: str, result: Any) -> None:
     """Write the calibration of ``result`` to ``path`` atomically; the old file -> ``.bak``."""
     write_text_atomic(path, '# accelcal_ros accelerometer calibration\n'
                       + dump_yaml(calibration_dict(result)), backup=True)

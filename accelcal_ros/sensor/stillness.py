@@ -59,7 +59,7 @@ properties ``duration_s`` and ``accel_std_of_mean`` (``accel_std / sqrt(samples)
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import List, Optional, Sequence, Tuple
+from typing import Deque, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
@@ -206,7 +206,7 @@ class StillnessDetector:
         self.rejected_saturated = 0
         self.samples_seen = 0
         self.motion_std = float('nan')
-        self._window = deque()
+        self._window: Deque[_Block] = deque()
         self._block: Optional[_Block] = None
         self._last_t: Optional[float] = None
         self._next_id = 0

@@ -144,10 +144,10 @@ class TiltEstimator:
 
     def reset(self) -> None:
         """Forget the filter state and the held estimate."""
-        self._smoothed = None
-        self._last_t = None
-        self._held = None
-        self._hold_start = None
+        self._smoothed: Optional[Tuple[float, float, float]] = None
+        self._last_t: Optional[float] = None
+        self._held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
+        self._hold_start: Optional[float] = None
 
     def set_noise(self, noise_std_g: Sequence[float]) -> None:
         """Set the per-axis raw noise standard deviation (g)."""
@@ -217,12 +217,14 @@ class TiltEstimator:
                 and self._last_t is not None and stamp > self._last_t:
             alpha = 1.0 - math.exp(-(stamp - self._last_t) / tau)
         self._last_t = stamp
+        hold_start = self._hold_start
         if not accelerating:
-            self._hold_start = None
-        elif self._hold_start is None:
-            self._hold_start = stamp
-        if accelerating and self._held is not None and self.calibrated \
-                and stamp - self._hold_start <= self.max_hold_s:
+            hold_start = None
+        elif hold_start is None:
+            hold_start = stamp
+        self._hold_start = hold_start
+        if hold_start is not None and self._held is not None and self.calibrated \
+                and stamp - hold_start <= self.max_hold_s:
             roll, pitch, (c00, c01, c11) = self._held
             extra = math.asin(min(1.0, deviation)) ** 2
             return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
