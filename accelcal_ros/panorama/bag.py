@@ -18,14 +18,18 @@ temporary name and renamed when complete); anything else: a folder of
 """
 from dataclasses import dataclass
 import os
-from typing import List, Optional, Sequence
+from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
-from accelcal_ros.recording.bag import BagReader
+from accelcal_ros.recording.bag import BagMessage, BagReader
 from accelcal_ros.recording.progress import Progress
 from accelcal_ros.recording.streams import message_time_s
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.panorama.stitch import Stitcher
 
 VIDEO_SUFFIXES = {'.mp4': 'mp4v', '.avi': 'MJPG', '.mkv': 'mp4v'}
 
@@ -42,12 +46,12 @@ class StitchCounts:
 class FrameSink:
     """Write frames to a video file (atomically) or to a folder of PNGs."""
 
-    def __init__(self, path: str, fps: float):
+    def __init__(self, path: Union[str, 'os.PathLike[str]'], fps: float) -> None:
         self.path = os.fspath(path)
         self.fps = float(fps)
         suffix = os.path.splitext(self.path)[1].lower()
         self.codec = VIDEO_SUFFIXES.get(suffix)
-        self._writer = None
+        self._writer: Any = None  # cv2.VideoWriter once the first frame gives the size
         self.count = 0
         if self.codec is None:
             if os.path.exists(self.path) and os.listdir(self.path):
@@ -75,7 +79,7 @@ class FrameSink:
                 frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
             if self._writer is None:
                 height, width = frame.shape[:2]
-                self._writer = cv2.VideoWriter(self._tmp, cv2.VideoWriter_fourcc(*self.codec),
+                self._writer = cv2.VideoWriter(self._tmp, cv2.VideoWriter.fourcc(*self.codec),
                                                self.fps, (width, height))
                 if not self._writer.isOpened():
                     raise InputError(f'{self.path}: OpenCV cannot write {self.codec} video '
@@ -93,8 +97,8 @@ class FrameSink:
                 os.remove(self._tmp)
 
 
-def stitch_recording(bag: BagReader, stitcher, topics: Sequence[Optional[str]], attitude,
-                     sink: FrameSink, sync_s: float = 0.05,
+def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Optional[str]],
+                     attitude: Sequence[ArrayLike], sink: FrameSink, sync_s: float = 0.05,
                      attitude_tolerance_s: float = 0.1) -> StitchCounts:
     """
     Render one panorama per complete frame set of ``topics`` into ``sink``.
@@ -112,16 +116,17 @@ def stitch_recording(bag: BagReader, stitcher, topics: Sequence[Optional[str]], 
         raise InputError(f'--images names a topic twice: {names}')
     index = {name: i for i, name in enumerate(names)}
     t_att, roll, pitch = (np.asarray(a, dtype=float) for a in attitude)
-    latest = [None] * len(names)
+    latest: List[Optional[Tuple[float, BagMessage]]] = [None] * len(names)
     counts = StitchCounts()
     frames = Progress(0, 'stitching')
     for message in bag.messages(names, 'reading images'):
         i = index[message.topic]
         counts.images += 1
         latest[i] = (message_time_s(message, bag.stamp), message)
-        if any(item is None for item in latest):
+        ready = [item for item in latest if item is not None]
+        if len(ready) < len(latest):
             continue
-        stamps = [item[0] for item in latest]
+        stamps = [item[0] for item in ready]
         if max(stamps) - min(stamps) > sync_s:
             continue
         stamp = max(stamps)
@@ -129,7 +134,7 @@ def stitch_recording(bag: BagReader, stitcher, topics: Sequence[Optional[str]], 
             counts.no_attitude += 1
             latest = [None] * len(names)
             continue
-        for k, (_, msg) in enumerate(latest):
+        for k, (_, msg) in enumerate(ready):
             image = convert.image_array(msg.msg, msg.msgtype)
             if stitcher.channels == 1 and image.ndim == 3:
                 image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)

@@ -118,8 +118,10 @@ def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = F
     say(f'  true attitude: horizon found in {int(ok.sum())} of {width} columns, row '
         f'{np.nanmean(truth_rows):.2f} (expected {centre:.1f}), largest offset '
         f'{np.nanmax(np.abs(truth_rows - centre)):.2f} px')
-    results = {'geometry': geometry, 'truth_offset_px': float(np.nanmax(np.abs(
-        truth_rows - centre))), 'columns_seen': int(ok.sum()), 'rows': {}}
+    rows_by_error: Dict[float, Dict[str, float]] = {}
+    results: Dict[str, Any] = {
+        'geometry': geometry, 'truth_offset_px': float(np.nanmax(np.abs(truth_rows - centre))),
+        'columns_seen': int(ok.sum()), 'rows': rows_by_error}
     images = {'true': truth_pano}
     say('  pitch error (paper sign) | max horizon deviation: rendered | closed form | paper')
     for paper_error_deg in (-2.0, 2.0):
@@ -133,9 +135,9 @@ def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = F
         closed = float(np.max(np.abs(expected[columns] - centre)))
         agreement = float(np.max(np.abs(rows[both] - expected[both]))) if both.any() \
             else float('nan')
-        results['rows'][paper_error_deg] = {'rendered_px': measured, 'closed_form_px': closed,
-                                            'model_misfit_px': agreement,
-                                            'paper_px': PAPER_DEVIATION_PX[paper_error_deg]}
+        rows_by_error[paper_error_deg] = {'rendered_px': measured, 'closed_form_px': closed,
+                                          'model_misfit_px': agreement,
+                                          'paper_px': PAPER_DEVIATION_PX[paper_error_deg]}
         images[f'pitch_error_{paper_error_deg:+g}deg'] = pano
         say(f'  {paper_error_deg:+5.1f} deg                 | {measured:7.1f} px       | '
             f'{closed:7.1f} px   | {PAPER_DEVIATION_PX[paper_error_deg]:4.0f} px   '

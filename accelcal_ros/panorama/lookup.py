@@ -54,6 +54,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from concurrent.futures import ThreadPoolExecutor
+
     from accelcal_ros.panorama.projection import PanoramaGeometry
     from accelcal_ros.panorama.rig import Rig
 
@@ -141,8 +143,8 @@ class LookupBuilder(MapBuilder):
         self._centre_soa = np.ascontiguousarray(self._centre_rays.T)
         self._hmid_soa = np.ascontiguousarray(self._hmid_rays.T)
         self._vmid_soa = np.ascontiguousarray(self._vmid_rays.T)
-        self._buffer = None
-        self._resize_pool = None
+        self._buffer: Optional[np.ndarray] = None
+        self._resize_pool: Optional['ThreadPoolExecutor'] = None
         self.band = (0, geometry.height)
         self.last_stats = {}
 
@@ -403,7 +405,8 @@ class LookupBuilder(MapBuilder):
         # cell (a, b) covers panorama pixels [a s - s/2, a s + s/2) x [b s - s/2, ...)
         blocks = self._blocks(buf[half:half + (th + 1) * s, half:half + (tw + 1) * s],
                               th + 1, s, tw + 1, s)
-        values, count = None, 0
+        values: Optional[np.ndarray] = None
+        count = 0
         if exact.any():
             by, bx = np.nonzero(exact)
             rows, cols = by * s - half, bx * s - half

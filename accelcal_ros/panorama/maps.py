@@ -8,7 +8,7 @@ A map is a float32 array ``(height, width, 2)`` of mosaic coordinates ``(x, y)``
 (:class:`~.lookup.LookupBuilder`), and the maps of feathered blending.
 """
 
-from typing import Tuple, TYPE_CHECKING, Union
+from typing import Dict, Optional, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
@@ -34,8 +34,8 @@ class MapBuilder(RigProjection):
         super().__init__(rig, geometry, imu_to_camera)
         self._place_images(gap)
         self._set_ray_tables(0, geometry.width, geometry.height)
-        self.band = (0, geometry.height)
-        self.last_stats = {}
+        self.band: Tuple[int, int] = (0, geometry.height)
+        self.last_stats: Dict[str, float] = {}
 
     def _place_images(self, gap: int) -> None:
         """Lay the rig's images out in the mosaic, ``gap`` pixels apart."""
@@ -81,7 +81,7 @@ class MapBuilder(RigProjection):
         q = self.camera_rotations(roll, pitch)
         h, w = self.geometry.height, self.geometry.width
         out = np.empty((h, w, 2), np.float32)
-        labels = np.empty((h, w), np.int8) if with_labels else None
+        labels: Optional[np.ndarray] = np.empty((h, w), np.int8) if with_labels else None
         cols = np.arange(w)
         for r0 in range(0, h, rows_per_chunk):
             rows = np.arange(r0, min(h, r0 + rows_per_chunk))
@@ -89,12 +89,12 @@ class MapBuilder(RigProjection):
             label, x, y, side = self._evaluate_soa(rays, q)
             out[rows[0]:rows[-1] + 1] = self.to_mosaic(label, x, y, side).reshape(
                 len(rows), w, 2)
-            if with_labels:
+            if labels is not None:
                 labels[rows[0]:rows[-1] + 1] = np.where(side == 0, label, -1).reshape(
                     len(rows), w)
         covered = np.nonzero((out[..., 0] != OUTSIDE).any(axis=1))[0]
         self.band = (int(covered[0]), int(covered[-1]) + 1) if covered.size else (0, 0)
-        return (out, labels) if with_labels else out
+        return (out, labels) if labels is not None else out
 
     def build_blend(self, roll: float, pitch: float, width_rad: float,
                     rows_per_chunk: int = 8) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -12,7 +12,7 @@ delivered in the order they were submitted. ``stages=1`` is the plain sequence (
 memory: at 3600x2400 each stage holds about 80-100 MB).
 """
 from concurrent.futures import Future, ThreadPoolExecutor, wait
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, List, Optional, Sequence
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.stitch import Stitcher
@@ -38,7 +38,7 @@ class PipelinedStitcher:
             raise InputError(f'stages must be 1 or 2, got {stages!r}')
         self.stitchers = [Stitcher(rig, geometry, *args, **options) for _ in range(stages)]
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='panorama_remap')
-        self._pending = [None] * stages
+        self._pending: List[Optional[Future]] = [None] * stages
         self._submitted = 0
         self.last_rebuild_s = float('nan')
         """Duration of the latest rebuild (seconds; NaN before the first)."""
@@ -71,8 +71,9 @@ class PipelinedStitcher:
         """
         index = self._submitted % len(self.stitchers)
         stitcher = self.stitchers[index]
-        if self._pending[index] is not None:
-            wait([self._pending[index]])
+        pending = self._pending[index]
+        if pending is not None:
+            wait([pending])
         if stitcher.update(roll, pitch, images):
             self.last_rebuild_s = stitcher.last_rebuild_s
         future = self._worker.submit(self._render, stitcher, consume)
@@ -81,7 +82,7 @@ class PipelinedStitcher:
         return future
 
     @staticmethod
-    def _render(stitcher, consume):
+    def _render(stitcher: Stitcher, consume: Callable[[Any], Any]) -> Any:
         return consume(stitcher.render())
 
     def drain(self) -> None:

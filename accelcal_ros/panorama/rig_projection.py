@@ -25,6 +25,7 @@ cameras); the map builders (:mod:`.maps`, :mod:`.lookup`) build on it. The lens 
 rig cameras' :class:`~accelcal_ros.camera.CameraModel` (``plumb_bob`` only here: its
 forward model is evaluated in float32 from a per-camera table).
 """
+from enum import IntFlag
 import math
 from typing import Any, Optional, Tuple, TYPE_CHECKING
 
@@ -35,6 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from concurrent.futures import ThreadPoolExecutor
+
     from accelcal_ros.panorama.projection import PanoramaGeometry
     from accelcal_ros.panorama.rig import Rig
 
@@ -44,7 +47,29 @@ DISTORTION_RADIUS_MARGIN = 1.5
 Evaluation = Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """``(label, x, y, side)`` of :meth:`RigProjection.evaluate`."""
 
-_SIDE_LEFT, _SIDE_RIGHT, _SIDE_TOP, _SIDE_BOTTOM, _SIDE_INVALID = 1, 2, 4, 8, 16
+
+class Side(IntFlag):
+    """
+    Where a ray falls relative to its camera's frame: the bits of the ``side`` code (uint8).
+
+    0: inside the frame; ``LEFT``/``RIGHT``/``TOP``/``BOTTOM``: beyond that edge (pixel
+    ``x <= -1``, ``x >= width``, ``y <= -1``, ``y >= height``); ``INVALID`` alone: the
+    ray has no pixel (behind the camera or beyond the lens model's valid radius).
+    """
+
+    LEFT = 1
+    RIGHT = 2
+    TOP = 4
+    BOTTOM = 8
+    INVALID = 16
+
+
+# plain ints for the array code: an IntFlag operand makes NumPy 2 promote uint8 to int64
+_SIDE_LEFT = int(Side.LEFT)
+_SIDE_RIGHT = int(Side.RIGHT)
+_SIDE_TOP = int(Side.TOP)
+_SIDE_BOTTOM = int(Side.BOTTOM)
+_SIDE_INVALID = int(Side.INVALID)
 
 
 def reference_heading_rad(imu_to_camera: ArrayLike) -> float:
@@ -155,7 +180,7 @@ class RigProjection:
             [[c.K[0, 0], c.K[0, 1], c.K[0, 2], c.K[1, 1], c.K[1, 2], *c.D, lim, c.width,
               c.height] for c, lim in zip(rig.cameras, self._limits2)], np.float32).T.copy()
         self.workers = 1
-        self._pool = None
+        self._pool: Optional['ThreadPoolExecutor'] = None
         self._borders = [self._border_rays(c) for c in rig.cameras]
 
     @staticmethod
@@ -210,7 +235,7 @@ class RigProjection:
         elevation peaks; both are tested by projecting them into the frame. Rows outside
         the range need no evaluation: no camera sees them.
         """
-        top, bottom = -np.inf, np.inf
+        top, bottom = -math.inf, math.inf
         poles = np.array([[0.0, 0.0], [-1.0, 1.0], [0.0, 0.0]], np.float32)  # zenith, nadir
         # A pole outside a camera's accepted cone (behind it or past the distortion
         # limit) is not in its frame; only a pole inside the cone is projected.
@@ -234,10 +259,10 @@ class RigProjection:
         g = self.geometry
         limit = np.radians(g.fov_v_deg) / 2 if g.projection == 'spherical' else \
             np.radians(89.9)
-        first = g.row_from_elevation(min(float(top), limit))
-        last = g.row_from_elevation(max(float(bottom), -limit))
-        first = max(0, int(math.floor(first)) - 1)
-        last = min(g.height, int(math.ceil(last)) + 2)
+        first_row = float(g.row_from_elevation(min(top, float(limit))))
+        last_row = float(g.row_from_elevation(max(bottom, -float(limit))))
+        first = max(0, int(math.floor(first_row)) - 1)
+        last = min(g.height, int(math.ceil(last_row)) + 2)
         return (first, last) if last > first else (0, 0)
 
     def camera_rotations(self, roll: float, pitch: float) -> np.ndarray:
@@ -327,4 +352,5 @@ class RigProjection:
         futures = [self._pool.submit(self._evaluate_soa, rays[:, a:b], rotations)
                    for a, b in zip(bounds[:-1], bounds[1:])]
         results = [f.result() for f in futures]
-        return tuple(np.concatenate([r[k] for r in results]) for k in range(4))
+        label, x, y, side = (np.concatenate([r[k] for r in results]) for k in range(4))
+        return label, x, y, side

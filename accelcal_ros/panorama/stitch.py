@@ -19,7 +19,7 @@ offline.
 """
 import math
 import time
-from typing import Any, Optional, Sequence
+from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
@@ -28,6 +28,9 @@ from accelcal_ros.panorama.rig_projection import tilt_matrix
 import numpy as np
 from numpy.typing import ArrayLike
 
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from concurrent.futures import ThreadPoolExecutor
+
 
 def rotation_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     """Return the angle (degrees) of the rotation ``a b^T`` between two rotation matrices."""
@@ -35,7 +38,7 @@ def rotation_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
 
 
-def _finite_attitude(roll, pitch):
+def _finite_attitude(roll: float, pitch: float) -> Tuple[float, float]:
     """Return ``(roll, pitch)`` as floats, or raise :class:`InputError` unless finite."""
     roll, pitch = float(roll), float(pitch)
     if not (math.isfinite(roll) and math.isfinite(pitch)):
@@ -86,15 +89,15 @@ class Stitcher:
         self.mosaic = np.zeros(shape, np.uint8)
         self._out = np.zeros(geometry.shape + ((channels,) if channels == 3 else ()),
                              np.uint8)
-        self._map = None
-        self._fixed = None
-        self._blend = None
+        self._map: Optional[np.ndarray] = None  # (H, W, 2) float32 panorama -> mosaic
+        self._fixed: Optional[Tuple[np.ndarray, np.ndarray]] = None  # cv2.convertMaps of it
+        self._blend: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
         self._band = (0, 0)
         self._drawn = (0, 0)
         self._frames_on_map = 0
-        self._tilt = None
-        self._copy_pool = None
-        self.attitude = None
+        self._tilt: Optional[np.ndarray] = None
+        self._copy_pool: Optional['ThreadPoolExecutor'] = None
+        self.attitude: Optional[Tuple[float, float]] = None
         self.rebuild_count = 0
         self.last_rebuild_s = float('nan')
 
@@ -246,14 +249,16 @@ class Stitcher:
             w = np.ascontiguousarray(weight[r0:r1])
             dst[...] = cv2.blendLinear(first, second, w, 1.0 - w)
             return out
+        fine = self._map
+        assert fine is not None  # no blend: set_attitude built the map
         self._frames_on_map += 1
         if self._fixed is None and self._frames_on_map >= 2:
-            self._fixed = cv2.convertMaps(self._map[r0:r1], None, cv2.CV_16SC2)
+            self._fixed = cv2.convertMaps(fine[r0:r1], None, cv2.CV_16SC2)
         if self._fixed is not None:
             cv2.remap(self.mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR, dst=dst,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         else:
-            cv2.remap(self.mosaic, self._map[r0:r1], None, cv2.INTER_LINEAR, dst=dst,
+            cv2.remap(self.mosaic, fine[r0:r1], None, cv2.INTER_LINEAR, dst=dst,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return out
 
@@ -278,7 +283,8 @@ class Stitcher:
             white[y0:y0 + cam.height, x0:x0 + cam.width] = 255
         mask = np.zeros(self.geometry.shape, bool)
         r0, r1 = self._band
-        maps = [self._map] if self._blend is None else list(self._blend[:2])
+        maps: List[np.ndarray] = [m for m in ([self._map] if self._blend is None
+                                              else self._blend[:2]) if m is not None]
         for m in maps:
             seen = cv2.remap(white, m[r0:r1], None, cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_CONSTANT, borderValue=0)

@@ -16,8 +16,8 @@ taken as complete) or :class:`~accelcal_ros.errors.InputError` (a topic that is 
 of the wrong type or empty: the message lists the topics there are).
 """
 from dataclasses import dataclass
-from pathlib import Path
 import os
+from pathlib import Path
 import sqlite3
 import struct
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type

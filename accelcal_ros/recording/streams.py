@@ -155,7 +155,8 @@ def read_imu(bag: BagReader, topic: Optional[str], option: str = '--topic') -> I
                 gyro_parts.append(w[None, :])
                 provided = provided or p
                 header_parts.append(np.array([int(msg.header.stamp.sec) * 1_000_000_000
-                                        + int(msg.header.stamp.nanosec)], dtype=np.int64))
+                                              + int(msg.header.stamp.nanosec)],
+                                             dtype=np.int64))
                 frame_id = frame_id or str(msg.header.frame_id)
         else:
             accel_parts.append(fast['accel'])
