@@ -17,6 +17,7 @@ Each function is an ``argparse`` ``type=``: it converts the text and raises
 """
 import argparse
 import math
+from typing import Callable, Optional
 
 __all__ = ['angle_deg', 'finite_float', 'float_in', 'int_in', 'nonnegative_float',
            'nonnegative_int', 'positive_float', 'positive_int', 'probability']
@@ -41,7 +42,8 @@ def _int(text: str) -> int:
         raise argparse.ArgumentTypeError(f'{text!r} is not an integer') from None
 
 
-def float_in(low=None, high=None, low_open=False, high_open=False):
+def float_in(low: Optional[float] = None, high: Optional[float] = None, low_open: bool = False,
+             high_open: bool = False) -> Callable[[str], float]:
     """Type of a finite number in [low, high] (open ends with ``low_open``/``high_open``)."""
     def check(text: str) -> float:
         value = finite_float(text)
@@ -56,7 +58,7 @@ def float_in(low=None, high=None, low_open=False, high_open=False):
     return check
 
 
-def int_in(low=None, high=None):
+def int_in(low: Optional[int] = None, high: Optional[int] = None) -> Callable[[str], int]:
     """Type of an integer in [low, high] (``None``: unbounded)."""
     def check(text: str) -> int:
         value = _int(text)
@@ -94,6 +96,6 @@ def nonnegative_int(text: str) -> int:
     return int_in(0)(text)
 
 
-def angle_deg(limit: float = 360.0):
+def angle_deg(limit: float = 360.0) -> Callable[[str], float]:
     """Type of a finite angle in degrees with ``|value| <= limit``."""
     return float_in(-limit, limit)

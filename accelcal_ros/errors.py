@@ -5,6 +5,10 @@ Every error a user can cause (bad file, bad parameter, bad geometry, bad device)
 :class:`AccelcalError`, so command-line tools and nodes can catch one type and show its
 message, which always says what was wrong and, where possible, what to do.
 """
+import os
+from typing import Optional, Union
+
+PathLike = Union[str, 'os.PathLike[str]']
 
 
 class AccelcalError(Exception):
@@ -18,7 +22,7 @@ class InputError(AccelcalError, ValueError):
 class FileFormatError(AccelcalError):
     """A file is missing, truncated or malformed; names the file and, if known, the line."""
 
-    def __init__(self, path, message, line=None):
+    def __init__(self, path: PathLike, message: str, line: Optional[int] = None) -> None:
         self.path = str(path)
         self.line = line
         self.reason = message
@@ -41,7 +45,7 @@ class GeometryError(AccelcalError):
 class FileWriteError(AccelcalError):
     """An output file cannot be written (read-only place, a directory, no room); names it."""
 
-    def __init__(self, path, message):
+    def __init__(self, path: PathLike, message: str) -> None:
         self.path = str(path)
         self.reason = message
         super().__init__(f'{self.path}: {message}')
