@@ -20,7 +20,7 @@ from accelcal_ros.rig.calibrate import (calibrate_directory, MIN_SHARED_VIEWS,
                                         MIN_VIEWS_PER_CAMERA, RigCalibration)
 from accelcal_ros.rig.detect import detect_board
 from accelcal_ros.rig.intrinsics import coverage_fraction
-from accelcal_ros.rig.render import write_imu_csv
+from accelcal_ros.sensor.recording import save_recording
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 import cv2
 import numpy as np
@@ -118,9 +118,8 @@ class RigCapture:
             ok, png = cv2.imencode('.png', grey)
             write_bytes_atomic(os.path.join(folder, f'{cam}.png'), png.tobytes())
         samples = [(t, a) for t, a in self._imu if t >= t0]
-        write_imu_csv(os.path.join(folder, 'imu.csv'),
-                      {'t': np.array([t for t, _ in samples]),
-                       'a': np.array([a for _, a in samples]).reshape(-1, 3)})
+        save_recording(os.path.join(folder, 'imu.csv'), np.array([t for t, _ in samples]),
+                       np.array([a for _, a in samples]).reshape(-1, 3))
         self._next += 1
         for cam, corners in found.items():
             self.views[cam].append(corners)

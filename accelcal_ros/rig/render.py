@@ -23,9 +23,10 @@ import os
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
-from accelcal_ros.fileio import write_bytes_atomic, write_text_atomic
+from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_y, rot_z
 from accelcal_ros.rig.board import Board
+from accelcal_ros.sensor.recording import save_recording
 import cv2
 import numpy as np
 
@@ -356,11 +357,8 @@ def imu_samples(truth: RigTruth, pose: PoseTruth, rng: np.random.Generator,
 
 
 def write_imu_csv(path: str, samples: Dict[str, np.ndarray]) -> None:
-    """Write ``t,ax,ay,az`` (s, m/s^2) atomically."""
-    lines = ['t,ax,ay,az']
-    lines += [f'{t:.4f},{a[0]:.5f},{a[1]:.5f},{a[2]:.5f}'
-              for t, a in zip(samples['t'], samples['a'])]
-    write_text_atomic(path, '\n'.join(lines) + '\n')
+    """Write ``t,ax,ay,az`` (s, m/s^2) atomically (the shared recording format)."""
+    save_recording(path, samples['t'], samples['a'])
 
 
 def write_dataset(directory: str, truth: RigTruth, poses: Sequence[PoseTruth],

@@ -7,7 +7,6 @@ neighbouring pairs); the errors against the known values are printed per N.
 """
 import os
 import tempfile
-import time
 from typing import List, Sequence
 
 from accelcal_ros.rig.calibrate import calibrate_directory, RigCalibration
@@ -44,9 +43,7 @@ def run_study(pose_counts: Sequence[int], seed: int = 1) -> List[str]:
             os.makedirs(sub)
             for name in names[:count]:
                 os.symlink(os.path.join(tmp, name), os.path.join(sub, name))
-            start = time.perf_counter()
             result = calibrate_directory(sub, truth.board)
-            del start
             e = errors(result, truth)
             lines.append(f'{count:5d} | {e["focal_pct"]:11.3f} | {e["centre_px"]:13.2f} | '
                          f'{e["R_0i_deg"]:12.4f} | {e["imu_to_camera_deg"]:17.4f} | '
