@@ -30,9 +30,10 @@ Validation as in paper B (Fig. 10): the angle between ``R n_i`` and ``f_i`` per 
 and a hold-out: fit on the even positions and test on the odd ones, and vice versa.
 """
 from dataclasses import dataclass, field
-from typing import List
+import os
+from typing import Any, Dict, List, Optional, Sequence, Union
 
-from accelcal_ros.errors import CalibrationError, InputError
+from accelcal_ros.errors import CalibrationError, GeometryError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list, rpy_radians_from_rotation
 from accelcal_ros.lidar.floor_assign import (AmbiguousFloorError, PlaneSet,  # noqa: F401
                                              select_floor)
@@ -45,6 +46,9 @@ from accelcal_ros.lidar.wahba import (_unit, check_constrained,  # noqa: F401
                                       UnconstrainedBoresightError)
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+from numpy.typing import ArrayLike
+
+PathLike = Union[str, 'os.PathLike[str]']
 
 MAX_CALIBRATED_GRAVITY_ERROR = 0.03
 """Largest relative deviation of |f| from 1 g after an accelerometer calibration."""
@@ -81,11 +85,11 @@ class BoresightResult:
     inliers: List[int] = field(default_factory=list)
 
     @property
-    def mean_error_deg(self):
+    def mean_error_deg(self) -> float:
         """Return the mean per-position error (deg)."""
         return float(np.mean(self.per_position_error_deg))
 
-    def to_dict(self):
+    def to_dict(self) -> Dict[str, Any]:
         """Return the YAML mapping (keys documented in docs/lidar.md)."""
         return {
             'R': [float(v) for v in self.rotation.reshape(-1)],
@@ -107,9 +111,10 @@ class BoresightResult:
         }
 
 
-def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
-                        tolerance_deg=3.0, max_pair_error_deg=2.0,
-                        height_margin_m=0.1) -> 'BoresightResult':
+def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[ArrayLike] = None,
+                        search: Optional[FloorSearch] = None, weighting: str = 'equal',
+                        tolerance_deg: float = 3.0, max_pair_error_deg: float = 2.0,
+                        height_margin_m: float = 0.1) -> 'BoresightResult':
     """
     Calibrate the boresight from :class:`StaticPosition` list; returns BoresightResult.
 
@@ -156,23 +161,27 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
                                      'other positions (floorless cloud?)')
         valid = [v for v, c in zip(valid, choice) if c >= 0]
     prior = rotation_matrix_from_list(np.asarray(prior, dtype=float).reshape(-1), 'prior')
-    names, normals, gravity, variances, inliers = [], [], [], [], []
+    names: List[str] = []
+    normal_list: List[np.ndarray] = []
+    gravity_list: List[np.ndarray] = []
+    variances: List[float] = []
+    inliers: List[int] = []
     for pos, pts in valid:
         f = _unit(np.asarray(pos.gravity_m_s2, dtype=float))
         up = prior.T @ f
         try:
             plane = find_floor(pts, search, up)
-        except Exception as exc:  # GeometryError: drop this position, go on
+        except (GeometryError, InputError) as exc:  # drop this position, go on
             dropped[pos.name] = str(exc)
             continue
         names.append(pos.name)
-        normals.append(plane.normal)
-        gravity.append(np.asarray(pos.gravity_m_s2, dtype=float))
+        normal_list.append(plane.normal)
+        gravity_list.append(np.asarray(pos.gravity_m_s2, dtype=float))
         variances.append(plane.normal_std_rad() ** 2 / 2 + pos.gravity_std_rad ** 2 / 2)
         inliers.append(len(plane.inliers))
     if len(names) < 2:
         raise CalibrationError(_too_few(names, dropped))
-    normals, gravity = np.array(normals), np.array(gravity)
+    normals, gravity = np.array(normal_list), np.array(gravity_list)
     var = np.maximum(np.array(variances), (1e-5) ** 2)
     weights = 1.0 / var if weighting == 'noise' else np.ones(len(names))
     weights = weights / weights.mean()
@@ -198,7 +207,8 @@ def calibrate_boresight(positions, prior=None, search=None, weighting='equal',
                            warn, inliers)
 
 
-def calibration_fit_warnings(positions, tolerance=MAX_CALIBRATED_GRAVITY_ERROR) -> List[str]:
+def calibration_fit_warnings(positions: Sequence[StaticPosition],
+                             tolerance: float = MAX_CALIBRATED_GRAVITY_ERROR) -> List[str]:
     """
     Return a warning when calibrated gravity magnitudes are far from 1 g.
 
@@ -231,7 +241,7 @@ def _too_few(kept, dropped):
             f'different tilts to constrain all angles); dropped: {reasons}')
 
 
-def load_boresight(path) -> np.ndarray:
+def load_boresight(path: PathLike) -> np.ndarray:
     """
     Return the 3x3 rotation (LiDAR -> IMU) from a boresight YAML (``R`` and/or ``rpy_deg``).
 
@@ -269,10 +279,12 @@ def load_boresight(path) -> np.ndarray:
         if gap > 0.01:
             raise FileFormatError(path, f'fields R and rpy_deg disagree by {gap:.3f} deg: fix '
                                         'or delete one of them')
-    return from_r if from_r is not None else from_rpy
+    result = from_r if from_r is not None else from_rpy
+    assert result is not None   # one of the two fields is present (checked above)
+    return result
 
 
-def _numbers(values, count, name) -> np.ndarray:
+def _numbers(values: Any, count: int, name: str) -> np.ndarray:
     """Return ``count`` finite floats from a YAML list, else InputError naming ``name``."""
     try:
         arr = np.asarray(values, dtype=float).reshape(-1)

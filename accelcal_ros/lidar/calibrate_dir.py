@@ -10,19 +10,23 @@ errors).
 """
 import os
 import re
+from typing import Any, Dict, List, Optional, Tuple
 
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.fileio import dump_yaml, write_text_atomic
-from accelcal_ros.lidar.boresight import calibrate_boresight, StaticPosition
+from accelcal_ros.lidar.boresight import (BoresightResult, calibrate_boresight, PathLike,
+                                          StaticPosition)
 from accelcal_ros.lidar.cloud import read_cloud, xyz
 from accelcal_ros.lidar.imu_log import read_imu_csv
+from accelcal_ros.lidar.plane_fit import FloorSearch
 from accelcal_ros.lidar.static_segments import longest_static_segment
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 
 _CLOUD = re.compile(r'^(pos\d+)\.(pcd|ply)$', re.IGNORECASE)
 
 
-def list_positions(directory):
+def list_positions(directory: PathLike) -> List[Tuple[str, str, str]]:
     """Return ``[(name, cloud_path, imu_path)]`` sorted by name; InputError if none."""
     directory = os.fspath(directory)
     if not os.path.isdir(directory):
@@ -45,7 +49,9 @@ def list_positions(directory):
     return found
 
 
-def load_positions(directory, model=None, skip_bad_files=False, static_options=None):
+def load_positions(directory: PathLike, model: Optional[SensorModel] = None,
+                   skip_bad_files: bool = False, static_options: Optional[Dict[str, Any]] = None
+                   ) -> Tuple[List[StaticPosition], Dict[str, str]]:
     """
     Read every position; returns ``(positions, dropped)``.
 
@@ -76,7 +82,9 @@ def load_positions(directory, model=None, skip_bad_files=False, static_options=N
     return positions, dropped
 
 
-def calibrate_directory(directory, prior=None, model=None, search=None, weighting='equal',
+def calibrate_directory(directory: PathLike, prior: Optional[np.ndarray] = None,
+                        model: Optional[SensorModel] = None,
+                        search: Optional[FloorSearch] = None, weighting: str = 'equal',
                         skip_bad_files=False):
     """Return the :class:`BoresightResult` of a directory (drops merged in)."""
     positions, dropped = load_positions(directory, model, skip_bad_files)
@@ -92,7 +100,8 @@ def calibrate_directory(directory, prior=None, model=None, search=None, weightin
     return result
 
 
-def write_result(path, result, extra=None):
+def write_result(path: PathLike, result: BoresightResult,
+                 extra: Optional[Dict[str, Any]] = None) -> None:
     """Write the boresight YAML atomically."""
     data = result.to_dict()
     if extra:
@@ -100,7 +109,7 @@ def write_result(path, result, extra=None):
     write_text_atomic(path, dump_yaml(data))
 
 
-def report_lines(result):
+def report_lines(result: BoresightResult) -> List[str]:
     """Return the human-readable report of a result (what the CLI prints)."""
     r, p, y = result.rpy_deg
     sr, sp, sy = result.rpy_std_deg
@@ -114,12 +123,12 @@ def report_lines(result):
                                  result.inliers):
         ho = '   n/a' if h is None else f'{h:.4f}'
         lines.append(f'  {name}: {err:.4f}  (hold-out {ho}, floor inliers {inl})')
-    ho = result.holdout
-    if ho['mean'] is not None:
-        lines.append(f'hold-out (fit even, test odd and vice versa): mean {ho["mean"]:.4f} deg, '
-                     f'max {ho["max"]:.4f} deg' + (
-                         '' if ho['even_vs_odd_rotation'] is None else
-                         f'; even vs odd fit differ by {ho["even_vs_odd_rotation"]:.4f} deg'))
+    summary = result.holdout
+    if summary['mean'] is not None:
+        lines.append(f'hold-out (fit even, test odd and vice versa): mean '
+                     f'{summary["mean"]:.4f} deg, max {summary["max"]:.4f} deg' + (
+                         '' if summary['even_vs_odd_rotation'] is None else
+                         f'; even vs odd fit differ by {summary["even_vs_odd_rotation"]:.4f} deg'))
     for name, reason in result.dropped.items():
         lines.append(f'dropped {name}: {reason}')
     for text in result.warnings:
@@ -127,7 +136,7 @@ def report_lines(result):
     return lines
 
 
-def plot_errors(path, result, paper_mean_deg=0.3):
+def plot_errors(path: PathLike, result: BoresightResult, paper_mean_deg: float = 0.3) -> None:
     """Draw paper B Fig. 10 (per-position angle between R n and g) as a PNG, atomically."""
     import matplotlib
 

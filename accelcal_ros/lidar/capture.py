@@ -34,11 +34,13 @@ request.
 """
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Deque, List, Optional, Tuple
 
 from accelcal_ros.lidar.boresight import StaticPosition
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+from numpy.typing import ArrayLike
 
 _STILL = StillnessThresholds()
 
@@ -86,7 +88,7 @@ class _StillPeriod:
     captured: bool = False
     ended_by_motion: bool = False
     gaps: list = field(default_factory=list)   # (t0, t1) not seen still (IMU gaps)
-    gravity_m_s2: np.ndarray = None   # mean specific force, set when a gap ends it
+    gravity_m_s2: Optional[np.ndarray] = None   # mean specific force, set when a gap ends it
 
     def covers(self, t):
         """Return True when a scan stamped ``t`` s was taken in this period."""
@@ -96,28 +98,28 @@ class _StillPeriod:
 class StaticCapture:
     """Detect still periods in an IMU stream and pair them with LiDAR scans."""
 
-    def __init__(self, settings=None, model=None):
+    def __init__(self, settings: Optional[CaptureSettings] = None, model=None) -> None:
         self.settings = settings or CaptureSettings()
         self.model = model
         self._thresholds = self.settings.stillness_thresholds()
         self._detector = StillnessDetector(self._thresholds, accel_unit_m_s2=1.0)
-        self._imu = deque()
-        self._current = None
-        self._ended = deque()   # recent ended periods, newest last
+        self._imu: Deque[Tuple[float, np.ndarray, Optional[np.ndarray]]] = deque()
+        self._current: Optional[_StillPeriod] = None
+        self._ended: Deque[_StillPeriod] = deque()   # recent ended periods, newest last
         self._motion_since_end = False
         self._seen_since_s = -np.inf   # first IMU sample after the last gap
-        self._pending = []
-        self.positions = []
+        self._pending: List[Tuple[float, np.ndarray]] = []
+        self.positions: List[StaticPosition] = []
         self.out_of_order = 0
         self._segment_start_s = -np.inf
         self._still_end_s = None
 
     @property
-    def still(self):
+    def still(self) -> bool:
         """Return True while the IMU is still."""
         return self._current is not None
 
-    def add_imu(self, t, accel, gyro=None):
+    def add_imu(self, t: float, accel: ArrayLike, gyro: Optional[ArrayLike] = None) -> bool:
         """
         Add one IMU sample; returns True when still. Out-of-order samples are counted.
 
@@ -132,12 +134,13 @@ class StaticCapture:
             self._end(ended_by_motion=False)  # the rig may have moved unseen
             self._seen_since_s = t
             self._detector = StillnessDetector(self._thresholds, accel_unit_m_s2=1.0)
-        accel = np.asarray(accel, dtype=float)
+        force = np.asarray(accel, dtype=float).reshape(3)
         if self.model is not None:
-            accel = self.model.correct(accel / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
-        if not self._detector.add(t, accel, gyro):
+            force = self.model.correct(force / STANDARD_GRAVITY_M_S2) * STANDARD_GRAVITY_M_S2
+        rate = None if gyro is None else np.asarray(gyro, dtype=float).reshape(3)
+        if not self._detector.add(t, force.tolist(), None if rate is None else rate.tolist()):
             return self.still   # NaN or saturated: not used (a shock ends the segment)
-        self._imu.append((t, accel, None if gyro is None else np.asarray(gyro, float)))
+        self._imu.append((t, force, rate))
         while self._imu[0][0] < t - self.settings.buffer_s:
             self._imu.popleft()
         while self._ended and self._ended[0].end_s < self._imu[0][0]:
@@ -217,7 +220,7 @@ class StaticCapture:
         while len(self._ended) > self.settings.recent_periods:
             self._ended.popleft()
 
-    def add_cloud(self, t, points):
+    def add_cloud(self, t: float, points: ArrayLike) -> Optional[StaticPosition]:
         """Add a scan; returns the :class:`StaticPosition` it completed (auto mode), else None."""
         self._pending.append((float(t), np.asarray(points, dtype=float).reshape(-1, 3)))
         limit = max(self.settings.max_pending_scans, 2 * self.settings.clouds_per_capture)
@@ -252,7 +255,7 @@ class StaticCapture:
         self._pending = keep
         return captured
 
-    def capture_now(self):
+    def capture_now(self) -> Tuple[Optional[StaticPosition], str]:
         """
         Capture the current position; returns ``(position or None, reason)``.
 

@@ -35,13 +35,14 @@ yaw in degrees) and says which prior decides.
 """
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import CalibrationError
 from accelcal_ros.frames import rpy_radians_from_rotation
 from accelcal_ros.lidar.wahba import (_unit, constraint_eigen, MIN_CONSTRAINT_EIGENVALUE,
                                       pair_errors_deg, rotation_angle_deg, solve_wahba)
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 FLOOR_BAND_M = 0.15
@@ -65,7 +66,7 @@ class PlaneSet:
     inliers: np.ndarray
 
     @classmethod
-    def from_planes(cls, planes) -> 'PlaneSet':
+    def from_planes(cls, planes: Sequence[Any]) -> 'PlaneSet':
         """Build from :class:`accelcal_ros.lidar.plane_fit.Plane` objects."""
         return cls(np.array([p.normal for p in planes], dtype=float).reshape(-1, 3),
                    np.array([p.d for p in planes], dtype=float),
@@ -140,8 +141,7 @@ def _refine(rotation, planes, f, tol_deg) -> Optional[FloorCandidate]:
         sel = np.flatnonzero(choice >= 0)
         if len(sel) < 2:
             return None
-        normals = [planes[i].normals[choice[i]] for i in sel]
-        rotation = solve_wahba(normals, f[sel])
+        rotation = solve_wahba([planes[i].normals[choice[i]] for i in sel], f[sel])
     choice = _choose(rotation, planes, f, tol_deg)
     sel = np.flatnonzero(choice >= 0)
     if len(sel) < 2:
@@ -190,7 +190,7 @@ def _hypotheses(planes, f, tol, max_pairs, seed):
     return out
 
 
-def floor_candidates(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0,
+def floor_candidates(planes: Sequence[PlaneSet], gravity: ArrayLike, tolerance_deg: float = 3.0,
                      max_pairs: int = 60, seed: int = 0,
                      max_candidates: int = 24) -> List[FloorCandidate]:
     """
@@ -243,7 +243,7 @@ def _smaller_floor_at(cand, planes, f, tol_deg, size_ratio):
     return out
 
 
-def select_floor(planes: Sequence[PlaneSet], gravity, tolerance_deg: float = 3.0,
+def select_floor(planes: Sequence[PlaneSet], gravity: ArrayLike, tolerance_deg: float = 3.0,
                  height_margin_m: float = 0.1, size_ratio: float = 2.0,
                  max_tilt_deg: float = 15.0) -> Tuple[np.ndarray, np.ndarray, List[str]]:
     """

@@ -7,6 +7,7 @@ the navigation frame (scipy / ROS order, scalar last). Times must increase stric
 out-of-order stream is an error naming the line, never re-sorted silently.
 """
 from dataclasses import dataclass
+from typing import Optional, Tuple
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
@@ -27,7 +28,7 @@ class PoseStream:
     position: np.ndarray
     quat_xyzw: np.ndarray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         """Check shapes, finiteness, strictly increasing time; normalise quaternions."""
         self.t = np.asarray(self.t, dtype=float).reshape(-1)
         self.position = np.asarray(self.position, dtype=float).reshape(-1, 3)
@@ -45,12 +46,13 @@ class PoseStream:
         self.quat_xyzw = self.quat_xyzw / np.linalg.norm(self.quat_xyzw, axis=1, keepdims=True)
 
     @property
-    def span(self):
+    def span(self) -> Tuple[float, float]:
         """Return ``(t_first, t_last)`` in seconds."""
         return float(self.t[0]), float(self.t[-1])
 
 
-def check_pose_arrays(t, position, quat):
+def check_pose_arrays(t: np.ndarray, position: np.ndarray,
+                      quat: np.ndarray) -> Optional[Tuple[int, str]]:
     """Return ``(index, reason)`` of the first bad pose, or None when all are fine."""
     values = np.hstack([t[:, None], position, quat])
     bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
@@ -78,7 +80,7 @@ def check_pose_arrays(t, position, quat):
     return None
 
 
-def read_poses_csv(path):
+def read_poses_csv(path: str) -> 'PoseStream':
     """Read a pose CSV into a :class:`PoseStream`; errors name the file and line."""
     cols = read_numeric_csv(path, POSE_COLUMNS)
     t = cols['t']
@@ -93,7 +95,7 @@ def read_poses_csv(path):
     return PoseStream(t, position, quat)
 
 
-def write_poses_csv(path, poses):
+def write_poses_csv(path: str, poses: 'PoseStream') -> None:
     """Write a :class:`PoseStream` as CSV atomically."""
     table = np.hstack([poses.t[:, None], poses.position, poses.quat_xyzw])
     lines = [','.join(POSE_COLUMNS)]

@@ -14,11 +14,13 @@ m/s^2) with, when a :class:`~accelcal_ros.sensor.model.SensorModel` is given, th
 calibration applied (``f = T diag(1/k) (a - b)`` in g, paper A eq. 1 / the full model).
 """
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import Any, List, Optional
 
+from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import still_segments, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass
@@ -34,18 +36,20 @@ class StaticSegment:
     count: int
 
     @property
-    def duration_s(self):
+    def duration_s(self) -> float:
         """Return the segment's duration in seconds."""
         return self.t_stop - self.t_start
 
-    def direction_std_rad(self):
+    def direction_std_rad(self) -> float:
         """Return the angular standard error of the mean gravity direction (rad)."""
         norm = float(np.linalg.norm(self.gravity_m_s2))
         return float(np.linalg.norm(self.gravity_std_m_s2) / np.sqrt(max(self.count, 1))
                      / max(norm, 1e-9) / np.sqrt(1.5))
 
 
-def find_static_segments(t, accel, gyro=None, model=None, min_duration_s: Optional[float] = None,
+def find_static_segments(t: ArrayLike, accel: ArrayLike, gyro: Optional[ArrayLike] = None,
+                         model: Optional[SensorModel] = None,
+                         min_duration_s: Optional[float] = None,
                          trim_s: float = 0.1,
                          thresholds: Optional[StillnessThresholds] = None
                          ) -> List[StaticSegment]:
@@ -81,7 +85,9 @@ def find_static_segments(t, accel, gyro=None, model=None, min_duration_s: Option
     return segments
 
 
-def longest_static_segment(t, accel, gyro=None, model=None, **kwargs) -> Optional[StaticSegment]:
+def longest_static_segment(t: ArrayLike, accel: ArrayLike, gyro: Optional[ArrayLike] = None,
+                           model: Optional[SensorModel] = None,
+                           **kwargs: Any) -> Optional[StaticSegment]:
     """Return the longest :class:`StaticSegment` or None when the log is never still."""
     segments = find_static_segments(t, accel, gyro, model, **kwargs)
     if not segments:
@@ -89,7 +95,7 @@ def longest_static_segment(t, accel, gyro=None, model=None, **kwargs) -> Optiona
     return max(segments, key=lambda s: s.duration_s)
 
 
-def load_calibration_model(path):
+def load_calibration_model(path: str) -> SensorModel:
     """
     Load an accelerometer calibration (issue 3's file) as a SensorModel.
 

@@ -19,9 +19,12 @@ pair, 3 parameters), and the covariance ``s^2 J^-1`` is widened by the small-sam
 with 2 positions (1 degree of freedom) the residual alone says little about the noise, and
 the factor is 42 (6.5 in sigma); with paper B's 15 positions it is 1.09.
 """
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
 from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.frames import rpy_radians_from_rotation
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 from scipy.stats import norm, t as student_t
 
@@ -43,7 +46,8 @@ def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def solve_wahba(normals, gravity, weights=None) -> np.ndarray:
+def solve_wahba(normals: ArrayLike, gravity: ArrayLike,
+                weights: Optional[ArrayLike] = None) -> np.ndarray:
     """
     Return the rotation ``R`` (3x3, LiDAR -> IMU) minimising ``sum w |f - R n|^2``.
 
@@ -64,7 +68,7 @@ def solve_wahba(normals, gravity, weights=None) -> np.ndarray:
     return u @ np.diag([1.0, 1.0, sign]) @ vt
 
 
-def pair_errors_deg(rotation, normals, gravity) -> np.ndarray:
+def pair_errors_deg(rotation: ArrayLike, normals: ArrayLike, gravity: ArrayLike) -> np.ndarray:
     """Return per-pair angles (deg) between ``R n_i`` and ``f_i`` (paper B Fig. 10)."""
     rn = _unit(np.asarray(normals, dtype=float).reshape(-1, 3)) @ np.asarray(rotation).T
     f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
@@ -72,14 +76,14 @@ def pair_errors_deg(rotation, normals, gravity) -> np.ndarray:
     return np.degrees(np.arctan2(sin, np.einsum('ij,ij->i', rn, f)))
 
 
-def constraint_eigen(gravity):
+def constraint_eigen(gravity: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
     """Return eigenvalues (ascending) and eigenvectors of ``mean(I - f f^T)``."""
     f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
     m = np.eye(3) - np.einsum('ij,ik->jk', f, f) / len(f)
     return np.linalg.eigh(m)
 
 
-def weakest_axis(gravity):
+def weakest_axis(gravity: ArrayLike) -> Tuple[np.ndarray, float]:
     """
     Return ``(axis, spread_deg)``: the IMU axis the gravity directions constrain least.
 
@@ -92,7 +96,8 @@ def weakest_axis(gravity):
     return axis, float(spread)
 
 
-def observability_warnings(gravity, threshold=MIN_CONSTRAINT_EIGENVALUE):
+def observability_warnings(gravity: ArrayLike,
+                           threshold: float = MIN_CONSTRAINT_EIGENVALUE) -> List[str]:
     """Return warnings when the gravity directions leave an angle poorly constrained."""
     values, _ = constraint_eigen(gravity)
     if values[0] >= threshold:
@@ -103,7 +108,8 @@ def observability_warnings(gravity, threshold=MIN_CONSTRAINT_EIGENVALUE):
             f'~{spread:.1f} deg around it): add positions tilted about another axis']
 
 
-def check_constrained(gravity, names=None, min_spread_deg=MIN_SPREAD_DEG) -> None:
+def check_constrained(gravity: ArrayLike, names: Optional[Sequence[str]] = None,
+                      min_spread_deg: float = MIN_SPREAD_DEG) -> None:
     """
     Raise :class:`UnconstrainedBoresightError` when an angle is not determined.
 
@@ -131,7 +137,8 @@ def small_sample_factor(dof: int) -> float:
     return float((student_t.ppf(0.975, dof) / norm.ppf(0.975)) ** 2)
 
 
-def rotation_covariance(rotation, normals, gravity, weights=None):
+def rotation_covariance(rotation: ArrayLike, normals: ArrayLike, gravity: ArrayLike,
+                        weights: Optional[ArrayLike] = None) -> Tuple[np.ndarray, float]:
     """
     Return ``(cov, sigma0_sq)``: covariance (rad^2) of the small rotation vector (IMU frame).
 
@@ -156,7 +163,7 @@ def rotation_covariance(rotation, normals, gravity, weights=None):
     return cov * sigma0_sq * small_sample_factor(dof), sigma0_sq
 
 
-def rpy_std_deg(rotation, cov) -> np.ndarray:
+def rpy_std_deg(rotation: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """Return roll/pitch/yaw standard deviations (deg) from a rotation-vector covariance."""
     if not np.all(np.isfinite(cov)):
         return np.full(3, np.inf)
@@ -174,14 +181,15 @@ def rpy_std_deg(rotation, cov) -> np.ndarray:
     return np.degrees(np.sqrt(np.maximum(var, 0.0)))
 
 
-def rotation_angle_deg(r1, r2) -> float:
+def rotation_angle_deg(r1: ArrayLike, r2: ArrayLike) -> float:
     """Return the angle (deg) of the rotation ``r1 r2^T``."""
     rel = np.asarray(r1) @ np.asarray(r2).T
     u, _, vt = np.linalg.svd(rel)
     return float(np.degrees(Rotation.from_matrix(u @ vt).magnitude()))
 
 
-def holdout(normals, gravity, weights=None):
+def holdout(normals: ArrayLike, gravity: ArrayLike,
+            weights: Optional[ArrayLike] = None) -> Dict[str, Any]:
     """
     Paper B's hold-out: fit on even positions, test on odd ones and vice versa.
 
@@ -202,7 +210,8 @@ def holdout(normals, gravity, weights=None):
         fits[name] = r
         test = ~fit_mask
         per[test] = pair_errors_deg(r, n[test], f[test])
-    result = {'per_position': [None if np.isnan(v) else float(v) for v in per]}
+    result: Dict[str, Any] = {'per_position': [None if np.isnan(v) else float(v)
+                                               for v in per]}
     ok = per[~np.isnan(per)]
     result['mean'] = float(ok.mean()) if ok.size else None
     result['max'] = float(ok.max()) if ok.size else None
