@@ -1,7 +1,7 @@
 """
 The floor of a Python IMU consumer: a bare rclpy node that republishes what ``attitude`` does.
 
-Subscribes ``imu/data_raw`` (sensor_msgs/Imu, sensor-data QoS) and publishes, for every
+Subscribes ``imu/data_raw`` (sensor_msgs/Imu, the QoS ``attitude`` uses) and publishes, for every
 sample, ``attitude`` (geometry_msgs/Vector3Stamped) and ``imu/data`` (sensor_msgs/Imu)
 with the input's header and no math: the executor and message handling alone. Spun with
 rclpy's default executor (``rclpy.spin``). ``benchmarks/bench_rates.py`` compares the CPU
@@ -9,6 +9,7 @@ per sample of ``attitude`` and ``calibration`` with this one. Run alone::
 
     python benchmarks/passthrough_node.py
 """
+from accelcal_ros.rosutil.qos import imu_subscription_qos
 from geometry_msgs.msg import Vector3Stamped
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -25,7 +26,7 @@ class PassThroughNode(Node):
         self.attitude_pub = self.create_publisher(Vector3Stamped, 'attitude',
                                                   qos_profile_sensor_data)
         self.imu_pub = self.create_publisher(Imu, 'imu/data', qos_profile_sensor_data)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, qos_profile_sensor_data)
+        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
         self._attitude = Vector3Stamped()
         self._imu = Imu()
 

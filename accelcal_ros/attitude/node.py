@@ -30,6 +30,7 @@ import os
 from accelcal_ros.attitude.params import ATTITUDE_PARAMS
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.rosutil.params import ParameterSet
+from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.calibration_file import load_calibration
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
@@ -94,7 +95,7 @@ class AttitudeNode(Node):
         self._out_imu.angular_velocity_covariance[0] = -1.0
         self._out_imu.orientation_covariance[8] = float(values['yaw_variance'])
         self._fcov_source = None
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, qos_profile_sensor_data)
+        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_timer)
 
     # -- calibration ----------------------------------------------------------------------

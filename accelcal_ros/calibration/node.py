@@ -19,6 +19,7 @@ from accelcal_ros.calibration.params import CALIBRATION_PARAMS, calibrator_confi
 from accelcal_ros.calibration.session import Calibrator
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.params import ParameterSet
+from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.calibration_file import save_calibration
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
@@ -27,7 +28,6 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
 from std_srvs.srv import Trigger
 
@@ -43,7 +43,7 @@ class CalibrationNode(Node):
         self.last_event = ''
         self.saved_path = ''
         self._apply_clients = {}
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, qos_profile_sensor_data)
+        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
         # A late joiner (ros2 topic echo --once) gets the latest status only.
         status_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
