@@ -18,8 +18,13 @@ of lines without their own; a bad option or rig file is refused before any line 
 read. Exit status 0, or 1 when any line was malformed (not merely without a solution).
 """
 import sys
+from typing import Any, Dict, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.cli_args import finite_float, float_in, int_in, nonnegative_int, positive_int
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.camera import CameraModel
+    import numpy as np
 
 SOLVE_HELP = """\
 Solve P2P with known vertical (paper A eq. 8): one JSON problem per input line,
@@ -47,7 +52,7 @@ example (one problem per line):
 _PROBLEM_KEYS = {'uv', 'K', 'points', 'down', 'roll', 'pitch', 'D', 'imu_to_camera', 'id'}
 
 
-def register(subparsers, study_subparsers):
+def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add ``p2p-solve`` and ``study p2p``."""
     import argparse
 
@@ -110,7 +115,8 @@ def _problem_array(problem: dict, key: str, shape: tuple):
     return array.reshape(shape)
 
 
-def parse_problem(line, imu_to_camera=None):
+def parse_problem(line: str, imu_to_camera: Optional['np.ndarray'] = None
+                  ) -> Tuple['np.ndarray', 'CameraModel', 'np.ndarray', 'np.ndarray']:
     """
     Return ``(uv, camera, points, down)`` of one JSON line; InputError if malformed.
 
@@ -173,7 +179,8 @@ def parse_problem(line, imu_to_camera=None):
     return uv, camera, points, down
 
 
-def solve_line(line, imu_to_camera=None):
+def solve_line(line: str, imu_to_camera: Optional['np.ndarray'] = None
+               ) -> Tuple[Dict[str, Any], bool]:
     """
     Return ``(output_dict, malformed)`` for one input line (never raises AccelcalError).
 

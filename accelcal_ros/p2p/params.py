@@ -1,4 +1,6 @@
 """Parameters of the ``p2p`` node (pure: specifications and their validation)."""
+from typing import Optional, Sequence
+
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
 from accelcal_ros.p2p.beacons import ORDERS
@@ -6,7 +8,7 @@ from accelcal_ros.paramspec import ParamSpec
 import numpy as np
 
 
-def emitters_reason(values):
+def emitters_reason(values: Sequence[float]) -> Optional[str]:
     """Return why 6 emitter coordinates are unusable, or None (distinct, not vertical)."""
     if len(values) != 6:
         return f'expected 6 values (M1 x y z, M2 x y z in m), got {len(values)}'
@@ -20,7 +22,7 @@ def emitters_reason(values):
     return None
 
 
-def rotation_reason(values):
+def rotation_reason(values: Sequence[float]) -> Optional[str]:
     """Return why 9 values are not a rotation matrix, or None."""
     try:
         rotation_matrix_from_list(values, 'imu_to_camera')

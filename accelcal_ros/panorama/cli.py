@@ -8,10 +8,18 @@ Offline commands of the panorama feature.
 * ``accelcal study horizon``: paper A's Fig. 6 experiment (horizon deviation for pitch
   errors of -2 / +2 deg and for the package's own calibration error).
 """
+import os
+from typing import Any, TYPE_CHECKING, Union
+
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
 
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    import numpy as np
 
-def register(subparsers, study_subparsers):
+PathLike = Union[str, 'os.PathLike[str]']
+
+
+def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add this feature's subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
         'stitch', help='stitch one set of rig images into a levelled panorama')
@@ -54,7 +62,7 @@ def register(subparsers, study_subparsers):
     p.set_defaults(handler=_study)
 
 
-def read_image(path):
+def read_image(path: PathLike) -> 'np.ndarray':
     """Read an 8-bit image (grey or BGR) with a clear error for unreadable files."""
     from accelcal_ros.errors import FileFormatError
     import cv2
@@ -73,7 +81,7 @@ def read_image(path):
     return image
 
 
-def write_image(path, image):
+def write_image(path: PathLike, image: 'np.ndarray') -> None:
     """Encode ``image`` by the file's extension (PNG if none) and write it atomically."""
     from accelcal_ros.errors import InputError
     from accelcal_ros.fileio import write_bytes_atomic
