@@ -31,13 +31,14 @@ resets the policy, with a log line and the count in ``/diagnostics``.
 ``imu_to_camera`` comes from the rig file when it has one; the parameter, when given,
 overrides it.
 """
+import math
 import time
 
 from accelcal_ros.camera.rig import resolve_imu_to_camera
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
-from accelcal_ros.panorama.params import STITCHER_PARAMS
+from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import load_rig
@@ -80,8 +81,14 @@ class StitcherNode(Node):
             raise InputError(f'camera_topics has {len(topics)} topic(s) but the rig has '
                              f'{len(self.rig)} cameras ({", ".join(self.rig.names)})')
         self.topics = topics
-        geometry = PanoramaGeometry(v['width'], v['height'], v['fov_h_deg'], v['fov_v_deg'],
+        width, height, focal_px = panorama_size(self.rig, v['width'], v['height'],
+                                                v['fov_h_deg'], v['fov_v_deg'],
+                                                v['projection'])
+        geometry = PanoramaGeometry(width, height, v['fov_h_deg'], v['fov_v_deg'],
                                     v['projection'])
+        size_from = 'width/height parameters' if focal_px is None else (
+            f'the rig: camera 0 f = {focal_px:.1f} px = {focal_px * math.pi / 180.0:.2f} '
+            'px/deg over the sector, rounded to even')
         self.encoding = v['output_encoding']
         mount, source = self._imu_to_camera(v)
         self.stitcher = PipelinedStitcher(
@@ -123,7 +130,8 @@ class StitcherNode(Node):
             f'stitching {len(self.rig)} cameras ({inputs}) into a {geometry.width}x'
             f'{geometry.height} {geometry.projection} panorama of {geometry.fov_h_deg:g} x '
             f'{geometry.fov_v_deg:g} deg on "panorama" (images {v["image_reliability"]}, '
-            f'depth {v["image_queue_depth"]}; imu_to_camera from {source})')
+            f'depth {v["image_queue_depth"]}; size from {size_from}; imu_to_camera from '
+            f'{source})')
 
     def _imu_to_camera(self, values):
         """

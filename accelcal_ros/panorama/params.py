@@ -1,4 +1,7 @@
 """Parameters of the ``stitcher`` node (pure: checked in tests without a ROS graph)."""
+import math
+from typing import Any, Optional, Tuple
+
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
 from accelcal_ros.panorama.projection import PROJECTIONS
@@ -17,6 +20,68 @@ def _even(value):
     return None if value % 2 == 0 else 'must be even'
 
 
+def _size_reason(value):
+    return None if value == 0 or value >= 2 else 'must be 0 (from the rig) or at least 2'
+
+
+MAX_PANORAMA_SIDE_PX = 30000
+
+
+def _round_even(value: float) -> int:
+    """Nearest even integer in [2, MAX_PANORAMA_SIDE_PX]."""
+    return int(min(MAX_PANORAMA_SIDE_PX, max(2, 2 * round(value / 2.0))))
+
+
+def reference_focal_px(rig: Any) -> float:
+    """Focal length of the rig's reference camera (camera 0): ``(fx + fy) / 2``, pixels."""
+    k = rig.cameras[0].K
+    return (float(k[0][0]) + float(k[1][1])) / 2.0
+
+
+def panorama_size_from_focal(focal_px: float, fov_h_deg: float, fov_v_deg: float,
+                             projection: str = 'spherical') -> Tuple[int, int]:
+    """
+    Return the panorama ``(width, height)`` in pixels whose resolution is the camera's.
+
+    A camera of focal length ``f`` (pixels) has ``f`` pixels per radian at its centre,
+    ``f * pi / 180`` per degree; the panorama gets as many over its sector:
+    ``width = fov_h_deg * f * pi / 180`` and, spherical, ``height = fov_v_deg * f * pi /
+    180``; cylindrical (rows equal steps of ``tan(el)``), ``height = 2 f tan(fov_v / 2)``
+    (``f`` rows per radian at the horizon). Each is rounded to the nearest even number
+    and kept within [2, 30000]. E.g. f = 500 px over 180 x 120 deg: 1570 x 1048.
+    """
+    focal_px = float(focal_px)
+    if not (math.isfinite(focal_px) and focal_px > 0):
+        raise InputError("the reference camera's focal length must be a positive number "
+                         f'of pixels, got {focal_px!r}: check K in the rig file')
+    per_deg = focal_px * math.pi / 180.0
+    width = _round_even(float(fov_h_deg) * per_deg)
+    if projection == 'cylindrical':
+        height = _round_even(2.0 * focal_px * math.tan(math.radians(float(fov_v_deg)) / 2.0))
+    else:
+        height = _round_even(float(fov_v_deg) * per_deg)
+    return width, height
+
+
+def panorama_size(rig: Any, width: int, height: int, fov_h_deg: float, fov_v_deg: float,
+                  projection: str = 'spherical') -> Tuple[int, int, Optional[float]]:
+    """
+    Return ``(width, height, focal_px)``: the parameters, 0 replaced by the rig's rule.
+
+    ``focal_px`` is the reference camera's focal length used
+    (:func:`panorama_size_from_focal`), None when both sides were given.
+    """
+    if width and height:
+        return int(width), int(height), None
+    focal = reference_focal_px(rig)
+    auto_w, auto_h = panorama_size_from_focal(focal, fov_h_deg, fov_v_deg, projection)
+    return int(width) or auto_w, int(height) or auto_h, focal
+
+
+_SIZE_RULE = ("0: from the rig, the reference camera's resolution over the sector "
+              '(f px/rad = f*pi/180 px/deg, f = (fx + fy)/2 of camera 0; ')
+
+
 STITCHER_PARAMS = [
     ParamSpec('rig_file', '', 'rig YAML: cameras with name, width, height, K (9), D (5, '
               'optional), R = R_0i (9); camera 0 is the reference camera', read_only=True),
@@ -26,10 +91,12 @@ STITCHER_PARAMS = [
               maximum=360.0, unit='deg', read_only=True),
     ParamSpec('fov_v_deg', 120.0, 'vertical extent of the panorama sector (at most 170 for '
               'cylindrical)', minimum=1.0, maximum=180.0, unit='deg', read_only=True),
-    ParamSpec('width', 3600, 'panorama width', minimum=2, maximum=30000, unit='px',
-              read_only=True),
-    ParamSpec('height', 2400, 'panorama height', minimum=2, maximum=30000, unit='px',
-              read_only=True),
+    ParamSpec('width', 0, 'panorama width; ' + _SIZE_RULE + 'width = fov_h_deg * f*pi/180, '
+              'rounded to even: 1570 for f = 500 over 180 deg)', minimum=0, maximum=30000,
+              unit='px', validator=_size_reason, read_only=True),
+    ParamSpec('height', 0, 'panorama height; ' + _SIZE_RULE + 'height = fov_v_deg * '
+              'f*pi/180 spherical, 2 f tan(fov_v/2) cylindrical, rounded to even)',
+              minimum=0, maximum=30000, unit='px', validator=_size_reason, read_only=True),
     ParamSpec('projection', 'spherical', 'spherical (equal angle per pixel) or cylindrical',
               choices=PROJECTIONS, read_only=True),
     ParamSpec('imu_to_camera', [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)],

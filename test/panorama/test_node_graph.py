@@ -1,10 +1,11 @@
-"""The ``stitcher`` executable in a real ROS 2 graph (3 cameras 320x240 -> 720x480)."""
+"""The ``stitcher`` executable in a real ROS 2 graph (e.g. 3 cameras 320x240 -> 720x480)."""
 import math
 import re
 import time
 
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama import render
+from accelcal_ros.panorama.params import panorama_size_from_focal
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import ring_rig, save_rig
 from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
@@ -210,7 +211,7 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
     save_rig(tmp_path / 'rig.yaml', rig)
     topics = ['cam0/image_raw', 'cam1/image_raw']
     proc = graph.start('stitcher', params={        # the default listed: the rig's wins
-        'rig_file': str(tmp_path / 'rig.yaml'), 'width': 180, 'height': 120,
+        'rig_file': str(tmp_path / 'rig.yaml'),    # size: the rig's (f = 55 px)
         'camera_topics': topics, 'compressed_output': True,
         'imu_to_camera': [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)]})
     panoramas = graph.collect(Image, 'panorama', 10)
@@ -227,6 +228,12 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
         feeder.frames(offset_s=offset[0])
 
     assert _feed_until(panoramas, 2, feed, 20.0), proc.output()
+    # the default size: 55 px/rad over 180 x 120 deg, rounded to even (172.8 x 115.2)
+    first = panoramas.snapshot()[0][0]
+    assert (first.width, first.height) == panorama_size_from_focal(55.0, 180.0, 120.0) \
+        == (172, 116)
+    assert 'into a 172x116 spherical panorama' in proc.output()
+    assert 'size from the rig: camera 0 f = 55.0 px' in proc.output()
     assert 'incompatible QoS' in proc.output()
     assert 'imu_to_camera from rig file' in proc.output()
     assert compressed.wait_for(1, timeout=5.0)
