@@ -245,11 +245,11 @@ def _georeference(args):
         from accelcal_ros.errors import InputError
 
         raise InputError(f'{args.cloud} holds no points: nothing to georeference')
+    from accelcal_ros.errors import AccelcalError, InputError
+
     try:
         times = point_times(cloud, args.time_base, args.time_field)
-    except Exception as exc:
-        from accelcal_ros.errors import InputError
-
+    except (AccelcalError, ValueError, TypeError) as exc:   # missing or non-numeric field
         raise InputError(f'{args.cloud}: {exc}') from None
     pts, keep, stats = georeference(xyz(cloud), times, poses, boresight, args.lever_arm)
     if stats.kept == 0:
