@@ -9,6 +9,7 @@ and rate covariance element 0 = -1, "not provided"); :func:`sensor_data_qos` is 
 ``qos_profile_sensor_data`` (best effort, volatile, keep last 5) as offered-QoS metadata,
 so ``ros2 bag play`` replays with the driver's QoS.
 """
+from enum import IntEnum
 import os
 from pathlib import Path
 import shutil
@@ -22,6 +23,26 @@ FORMATS = ('mcap', 'sqlite3', 'ros1')
 
 PathLike = Union[str, 'os.PathLike[str]']
 Vector = Union[Sequence[float], np.ndarray]
+
+
+class PointFieldType(IntEnum):
+    """The ``datatype`` constants of sensor_msgs/PointField."""
+
+    INT8 = 1
+    UINT8 = 2
+    INT16 = 3
+    UINT16 = 4
+    INT32 = 5
+    UINT32 = 6
+    FLOAT32 = 7
+    FLOAT64 = 8
+
+
+POINTFIELD_TYPE_OF_DTYPE = {
+    'i1': PointFieldType.INT8, 'u1': PointFieldType.UINT8, 'i2': PointFieldType.INT16,
+    'u2': PointFieldType.UINT16, 'i4': PointFieldType.INT32, 'u4': PointFieldType.UINT32,
+    'f4': PointFieldType.FLOAT32, 'f8': PointFieldType.FLOAT64}
+"""PointField datatype of a numpy dtype's kind and size (``dtype.str[1:]``)."""
 
 
 def full_type(msgtype: str) -> str:
@@ -211,7 +232,6 @@ class BagWriter:
     def pointcloud2_message(self, t_ns: int, cloud: np.ndarray, frame_id: str,
                             topic: str = '') -> Any:
         """Return an unorganised sensor_msgs/PointCloud2 holding structured array ``cloud``."""
-        codes = {'i1': 1, 'u1': 2, 'i2': 3, 'u2': 4, 'i4': 5, 'u4': 6, 'f4': 7, 'f8': 8}
         cloud = np.ascontiguousarray(cloud)
         names = cloud.dtype.names
         if not names:
@@ -224,10 +244,10 @@ class BagWriter:
         fields: List[Any] = []
         for name in names:
             data[name] = cloud[name]
-            code = codes.get(packed[name].str[1:])
+            code = POINTFIELD_TYPE_OF_DTYPE.get(packed[name].str[1:])
             if code is None:
                 raise InputError(f'cloud field {name!r} ({packed[name]}) has no PointField type')
-            fields.append(field_type(name=name, offset=layout[name][1], datatype=code,
+            fields.append(field_type(name=name, offset=layout[name][1], datatype=int(code),
                                      count=1))
         return types['sensor_msgs/msg/PointCloud2'](
             header=self.header(t_ns, frame_id, topic), height=1, width=len(cloud),
