@@ -17,6 +17,7 @@ The time-synchronisation term (left out of eq. 1 by the paper) is
 0.08 mm + 3.1 mm (the paper quotes ~0.5 mm).
 """
 import math
+from typing import Dict, Tuple
 
 PAPER_RANGE_M = 100.0
 PAPER_ATTITUDE_DEG = 0.1
@@ -29,25 +30,27 @@ PAPER_TERMS_M = {'attitude': 0.18, 'gnss': 0.01, 'lidar': 0.03,
 """Paper B's metric terms as printed (cm values of the text, in metres)."""
 
 
-def angle_to_metres(angle_deg, range_m):
+def angle_to_metres(angle_deg: float, range_m: float) -> float:
     """Return the lateral error (m) of an angular error ``angle_deg`` at ``range_m``."""
     return range_m * math.tan(math.radians(angle_deg))
 
 
-def cloud_error_m(attitude_m, gnss_m, lidar_m, boresight_m, sync_m=0.0):
+def cloud_error_m(attitude_m: float, gnss_m: float, lidar_m: float, boresight_m: float,
+                  sync_m: float = 0.0) -> float:
     """Return paper B eq. (1): the root sum of squares of the metric terms (m)."""
     return math.sqrt(attitude_m ** 2 + gnss_m ** 2 + lidar_m ** 2 + boresight_m ** 2
                      + sync_m ** 2)
 
 
-def sync_error_m(sync_s, speed_m_s, rate_deg_s, range_m):
+def sync_error_m(sync_s: float, speed_m_s: float, rate_deg_s: float, range_m: float) -> float:
     """Return the time-synchronisation error (m): ``v dt + range * omega * dt``."""
     return speed_m_s * sync_s + range_m * math.radians(rate_deg_s) * sync_s
 
 
-def error_budget(range_m=PAPER_RANGE_M, attitude_deg=PAPER_ATTITUDE_DEG, gnss_m=PAPER_GNSS_M,
-                 lidar_m=PAPER_LIDAR_M, boresight_deg=PAPER_BORESIGHT_AFTER_DEG,
-                 sync_m=0.0):
+def error_budget(range_m: float = PAPER_RANGE_M, attitude_deg: float = PAPER_ATTITUDE_DEG,
+                 gnss_m: float = PAPER_GNSS_M, lidar_m: float = PAPER_LIDAR_M,
+                 boresight_deg: float = PAPER_BORESIGHT_AFTER_DEG,
+                 sync_m: float = 0.0) -> Dict[str, float]:
     """Return a dict with every term (m) and the total of eq. (1) for angular inputs."""
     terms = {'attitude': angle_to_metres(attitude_deg, range_m), 'gnss': gnss_m,
              'lidar': lidar_m, 'boresight': angle_to_metres(boresight_deg, range_m),
@@ -57,7 +60,7 @@ def error_budget(range_m=PAPER_RANGE_M, attitude_deg=PAPER_ATTITUDE_DEG, gnss_m=
     return terms
 
 
-def paper_totals_m():
+def paper_totals_m() -> Tuple[float, float]:
     """Return (before, after) calibration totals from the paper's printed terms."""
     t = PAPER_TERMS_M
     before = cloud_error_m(t['attitude'], t['gnss'], t['lidar'], t['boresight_before'])

@@ -18,10 +18,13 @@ points, are dropped and counted, never extrapolated.
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 import os
+from typing import Optional, Tuple, Union
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import rotation_matrix_from_list
+from accelcal_ros.lidar.poses import PoseStream
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 
@@ -35,7 +38,7 @@ class GeorefStats:
     after_span: int
     non_finite: int
 
-    def summary(self):
+    def summary(self) -> str:
         """Return a one-line human-readable summary."""
         return (f'{self.kept} of {self.total} points georeferenced; dropped '
                 f'{self.before_span} before and {self.after_span} after the pose stream, '
@@ -45,7 +48,7 @@ class GeorefStats:
 class PoseInterpolator:
     """Linear position / slerp orientation interpolation of a :class:`PoseStream`."""
 
-    def __init__(self, poses):
+    def __init__(self, poses: PoseStream) -> None:
         self.t = poses.t
         self.position = poses.position
         rot = Rotation.from_quat(poses.quat_xyzw)
@@ -55,18 +58,18 @@ class PoseInterpolator:
         self.dpos = np.diff(self.position, axis=0)
 
     @property
-    def span(self):
+    def span(self) -> Tuple[float, float]:
         """Return ``(t_first, t_last)``."""
         return float(self.t[0]), float(self.t[-1])
 
-    def segment(self, times):
+    def segment(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Return ``(index, alpha)`` of each time (inside the span) in the pose stream."""
         idx = np.searchsorted(self.t, times, side='right') - 1
         np.clip(idx, 0, len(self.t) - 2, out=idx)
         alpha = (times - self.t[idx]) / self.dt[idx]
         return idx, alpha
 
-    def quaternions(self, idx, alpha):
+    def quaternions(self, idx: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """Return interpolated quaternions ``(N, 4)`` xyzw (slerp)."""
         v = self.delta_rotvec[idx] * alpha[:, None]
         angle = np.sqrt(np.einsum('ij,ij->i', v, v))
@@ -83,12 +86,12 @@ class PoseInterpolator:
                          aw * bz + ax * by - ay * bx + az * bw,
                          aw * bw - ax * bx - ay * by - az * bz], axis=1)
 
-    def positions(self, idx, alpha):
+    def positions(self, idx: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """Return linearly interpolated positions ``(N, 3)``."""
         return self.position[idx] + self.dpos[idx] * alpha[:, None]
 
 
-def rotate_by_quaternions(quat, vectors):
+def rotate_by_quaternions(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """Rotate ``(N, 3)`` vectors by ``(N, 4)`` unit quaternions (xyzw)."""
     ux, uy, uz, w = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
     vx, vy, vz = vectors[:, 0], vectors[:, 1], vectors[:, 2]
@@ -109,8 +112,10 @@ def _transform_chunk(interp, boresight, lever, points, times):
         + interp.positions(idx, alpha)
 
 
-def georeference(points, times, poses, boresight, lever_arm_m=(0.0, 0.0, 0.0), threads=None,
-                 chunk=262144):
+def georeference(points: ArrayLike, times: ArrayLike,
+                 poses: Union[PoseStream, 'PoseInterpolator'], boresight: ArrayLike,
+                 lever_arm_m: ArrayLike = (0.0, 0.0, 0.0), threads: Optional[int] = None,
+                 chunk: int = 262144) -> Tuple[np.ndarray, np.ndarray, GeorefStats]:
     """
     Return ``(points_nav (M, 3), kept_mask (N,), GeorefStats)``.
 

@@ -21,7 +21,7 @@ class ImuLog:
     gyro: Optional[np.ndarray] = None
 
 
-def read_imu_csv(path):
+def read_imu_csv(path: str) -> 'ImuLog':
     """Read an IMU CSV log into an :class:`ImuLog`."""
     cols = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'), ('gx', 'gy', 'gz'))
     t = cols['t']
@@ -43,7 +43,7 @@ def read_imu_csv(path):
     return ImuLog(t, accel, gyro)
 
 
-def write_imu_csv(path, log):
+def write_imu_csv(path: str, log: 'ImuLog') -> None:
     """Write an :class:`ImuLog` as CSV atomically."""
     cols = [log.t[:, None], log.accel]
     header = 't,ax,ay,az'

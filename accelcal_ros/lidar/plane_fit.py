@@ -26,10 +26,11 @@ refitted by total least squares (SVD of the centred inliers) with the inliers
 re-selected, ``refit_iterations`` times.
 """
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import List, Optional, Tuple
 
 from accelcal_ros.errors import GeometryError, InputError
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass
@@ -43,11 +44,11 @@ class Plane:
     normal_cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     extent_m: tuple = (0.0, 0.0)
 
-    def distances(self, points):
+    def distances(self, points: ArrayLike) -> np.ndarray:
         """Compute the signed distance (m) of each of ``(N, 3)`` points to the plane."""
         return np.asarray(points) @ self.normal + self.d
 
-    def normal_std_rad(self):
+    def normal_std_rad(self) -> float:
         """Return the angular standard deviation (rad) of the normal (total, 2 axes)."""
         return float(np.sqrt(max(np.trace(self.normal_cov), 0.0)))
 
@@ -72,7 +73,7 @@ class FloorSearch:
     max_planes: int = 6
     seed: int = 0
 
-    def check(self):
+    def check(self) -> None:
         """Raise InputError for inconsistent values."""
         if self.distance_threshold_m <= 0:
             raise InputError('distance_threshold_m must be positive')
@@ -84,7 +85,7 @@ class FloorSearch:
             raise InputError('max_iterations must be >= 1 and min_inliers >= 3')
 
 
-def voxel_downsample(points, voxel_m):
+def voxel_downsample(points: ArrayLike, voxel_m: float) -> np.ndarray:
     """Return one point (the centroid) per occupied voxel of edge ``voxel_m`` (m)."""
     points = np.asarray(points, dtype=float)
     if voxel_m <= 0 or len(points) == 0:
@@ -101,7 +102,8 @@ def voxel_downsample(points, voxel_m):
     return sums / counts[:, None]
 
 
-def prepare_floor_candidates(points, search, up=None):
+def prepare_floor_candidates(points: ArrayLike, search: FloorSearch,
+                             up: Optional[ArrayLike] = None) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return the points (and their indices into ``points``) that may belong to the floor.
 
@@ -114,12 +116,12 @@ def prepare_floor_candidates(points, search, up=None):
     rng = np.linalg.norm(pts, axis=1)
     keep = (rng >= search.min_range_m) & (rng <= search.max_range_m)
     if up is not None:
-        up = np.asarray(up, dtype=float) / np.linalg.norm(up)
+        up_unit = np.asarray(up, dtype=float) / np.linalg.norm(up)
         if search.ceiling_radius_m > 0:
-            centre = search.ceiling_lift_m * up
+            centre = search.ceiling_lift_m * up_unit
             keep &= np.linalg.norm(pts - centre, axis=1) > search.ceiling_radius_m
         else:
-            keep &= pts @ up <= search.max_height_m
+            keep &= pts @ up_unit <= search.max_height_m
     pts, index = pts[keep], index[keep]
     if search.voxel_m > 0 and len(pts):
         thinned = voxel_downsample(pts, search.voxel_m)
@@ -148,7 +150,9 @@ def _refit(pts, inliers):
     return normal, -float(normal @ centre), sing, vt
 
 
-def msac_plane(points, search=None, up=None, exclude=None):
+def msac_plane(points: ArrayLike, search: Optional[FloorSearch] = None,
+               up: Optional[ArrayLike] = None,
+               exclude: Optional[np.ndarray] = None) -> Optional[Plane]:
     """
     Fit one plane by MSAC with a least-squares refit; returns a :class:`Plane` or None.
 
@@ -198,7 +202,7 @@ def msac_plane(points, search=None, up=None, exclude=None):
         return None
     normal, d = best
     inliers = np.flatnonzero(np.abs(sub @ normal + d) < search.distance_threshold_m)
-    sing, vt = None, None
+    sing, vt = np.zeros(3), np.eye(3)
     for _ in range(max(1, search.refit_iterations)):
         if len(inliers) < 3:
             return None
@@ -218,12 +222,15 @@ def msac_plane(points, search=None, up=None, exclude=None):
     n_in = len(inliers)
     spread = sing[:2] / np.sqrt(n_in)
     sigma2 = max(rms, 1e-4) ** 2
-    cov = sum(sigma2 / max(sing[k] ** 2, 1e-12) * np.outer(vt[k], vt[k]) for k in range(2))
+    cov = np.zeros((3, 3))
+    for k in range(2):
+        cov += sigma2 / max(sing[k] ** 2, 1e-12) * np.outer(vt[k], vt[k])
     return Plane(normal, float(d), sub_index[inliers], rms, cov,
                  (float(2 * spread[0]), float(2 * spread[1])))
 
 
-def find_floor(points, search=None, up=None):
+def find_floor(points: ArrayLike, search: Optional[FloorSearch] = None,
+               up: Optional[ArrayLike] = None) -> Plane:
     """
     Return the floor :class:`Plane` in a LiDAR cloud, or raise GeometryError with why not.
 
@@ -252,7 +259,8 @@ def find_floor(points, search=None, up=None):
     return plane
 
 
-def find_planes(points, search=None, max_planes=None):
+def find_planes(points: ArrayLike, search: Optional[FloorSearch] = None,
+                max_planes: Optional[int] = None) -> List[Plane]:
     """
     Return up to ``max_planes`` dominant planes (sequential MSAC), largest first.
 
@@ -280,7 +288,7 @@ def find_planes(points, search=None, max_planes=None):
     return planes
 
 
-def plane_angle_deg(n1, n2, signed=True):
+def plane_angle_deg(n1: ArrayLike, n2: ArrayLike, signed: bool = True) -> float:
     """Return the angle (deg) between two normals (``signed=False``: up to sign)."""
     c = float(np.dot(n1, n2) / (np.linalg.norm(n1) * np.linalg.norm(n2)))
     if not signed:
