@@ -10,34 +10,40 @@ buffered poses are dropped and counted. Georeferenced points are accumulated (up
 ``max_points``, oldest first out) for saving to a file.
 """
 from collections import deque
+from typing import Any, Deque, List, Optional, Tuple
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.frames import rotation_matrix_from_list
 from accelcal_ros.lidar.cloud import make_cloud, point_times, xyz
 from accelcal_ros.lidar.georef import georeference
 from accelcal_ros.lidar.poses import PoseStream
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 class CloudAssembler:
     """Buffer poses and scans; georeference scans once the poses cover them."""
 
-    def __init__(self, boresight, lever_arm_m=(0.0, 0.0, 0.0), time_field=None,
-                 pose_buffer_s=30.0, max_wait_s=0.5, max_points=5_000_000):
-        self.boresight = np.asarray(boresight, dtype=float)
-        self.lever_arm_m = np.asarray(lever_arm_m, dtype=float)
+    def __init__(self, boresight: ArrayLike, lever_arm_m: ArrayLike = (0.0, 0.0, 0.0),
+                 time_field: Optional[str] = None, pose_buffer_s: float = 30.0,
+                 max_wait_s: float = 0.5, max_points: int = 5_000_000) -> None:
+        self.boresight = rotation_matrix_from_list(boresight, 'boresight', tolerance=1e-4)
+        self.lever_arm_m = np.asarray(lever_arm_m, dtype=float).reshape(3)
+        if not np.all(np.isfinite(self.lever_arm_m)):
+            raise InputError(f'lever arm {self.lever_arm_m.tolist()} contains NaN or infinity')
         self.time_field = time_field or None
         self.pose_buffer_s = pose_buffer_s
         self.max_wait_s = max_wait_s
         self.max_points = max_points
-        self._poses = deque()
-        self._pending = deque()
-        self._map = deque()
+        self._poses: Deque[Tuple[float, np.ndarray, np.ndarray]] = deque()
+        self._pending: Deque[Tuple[float, np.ndarray, np.ndarray]] = deque()
+        self._map: Deque[np.ndarray] = deque()
         self._map_points = 0
         self.rejected_poses = 0
         self.totals = {'points': 0, 'kept': 0, 'before': 0, 'after': 0, 'non_finite': 0,
                        'scans': 0}
 
-    def add_pose(self, t, position, quat_xyzw):
+    def add_pose(self, t: float, position: ArrayLike, quat_xyzw: ArrayLike) -> Optional[str]:
         """Append a pose; returns None or the reason it was rejected (out of order, NaN)."""
         values = np.concatenate([[t], position, quat_xyzw]).astype(float)
         if not np.all(np.isfinite(values)):
@@ -55,12 +61,12 @@ class CloudAssembler:
             self._poses.popleft()
         return None
 
-    def add_scan(self, stamp_s, cloud, now_s):
+    def add_scan(self, stamp_s: float, cloud: np.ndarray, now_s: float) -> None:
         """Queue a scan; raises InputError when it has no per-point time field."""
         times = point_times(cloud, stamp_s, self.time_field)
         self._pending.append((now_s, cloud, times))
 
-    def pose_stream(self):
+    def pose_stream(self) -> Optional[PoseStream]:
         """Return the buffered poses as a PoseStream (None with fewer than 2)."""
         if len(self._poses) < 2:
             return None
@@ -68,7 +74,7 @@ class CloudAssembler:
         return PoseStream(t, np.array([p[1] for p in self._poses]),
                           np.array([p[2] for p in self._poses]))
 
-    def process(self, now_s, force=False):
+    def process(self, now_s: float, force: bool = False) -> List[Tuple[np.ndarray, Any]]:
         """Georeference every ready scan; returns ``[(cloud_nav, stats)]``."""
         out = []
         while self._pending:
@@ -110,14 +116,14 @@ class CloudAssembler:
                 self._map_points -= len(self._map.popleft())
         return nav, stats
 
-    def map_cloud(self):
+    def map_cloud(self) -> np.ndarray:
         """Return every accumulated georeferenced point as one structured array."""
         if not self._map:
             return make_cloud(np.zeros((0, 3)), None, None, np.zeros(0), 'timestamp',
                               double=True)
         return np.concatenate(list(self._map))
 
-    def summary(self):
+    def summary(self) -> str:
         """Return a one-line summary of what was processed."""
         t = self.totals
         return (f'{t["scans"]} scans, {t["kept"]} of {t["points"]} points georeferenced '
@@ -125,7 +131,7 @@ class CloudAssembler:
                 f'non-finite dropped), {self.rejected_poses} poses rejected')
 
 
-def check_time_field(cloud, field=None):
+def check_time_field(cloud: np.ndarray, field: Optional[str] = None) -> str:
     """Raise InputError when a scan has no per-point time (see cloud.time_field_of)."""
     from accelcal_ros.lidar.cloud import time_field_of
 

@@ -109,3 +109,16 @@ def test_pose_file_absurd_values(tmp_path, row, match):
     with pytest.raises(FileFormatError, match=match) as err:
         read_poses_csv(path)
     assert f'{path}:3' in str(err.value)
+
+
+def test_cloud_assembler_core_refuses_nan_boresight_and_lever_arm():
+    """The streaming core checks its rotation and lever arm once, at construction."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.lidar.assembler import CloudAssembler
+    import numpy as np
+
+    with pytest.raises(InputError, match='boresight'):
+        CloudAssembler(np.full((3, 3), np.nan))
+    with pytest.raises(InputError, match='lever arm'):
+        CloudAssembler(np.eye(3), (0.0, float('inf'), 0.0))
+    assert CloudAssembler(np.eye(3)).summary().startswith('0 scans')
