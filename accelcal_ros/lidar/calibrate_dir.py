@@ -85,7 +85,7 @@ def load_positions(directory: PathLike, model: Optional[SensorModel] = None,
 def calibrate_directory(directory: PathLike, prior: Optional[np.ndarray] = None,
                         model: Optional[SensorModel] = None,
                         search: Optional[FloorSearch] = None, weighting: str = 'equal',
-                        skip_bad_files=False):
+                        skip_bad_files: bool = False) -> BoresightResult:
     """Return the :class:`BoresightResult` of a directory (drops merged in)."""
     positions, dropped = load_positions(directory, model, skip_bad_files)
     if not positions:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Deque, List, Optional, Tuple
 
 from accelcal_ros.lidar.boresight import StaticPosition
+from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
@@ -98,7 +99,8 @@ class _StillPeriod:
 class StaticCapture:
     """Detect still periods in an IMU stream and pair them with LiDAR scans."""
 
-    def __init__(self, settings: Optional[CaptureSettings] = None, model=None) -> None:
+    def __init__(self, settings: Optional[CaptureSettings] = None,
+                 model: Optional[SensorModel] = None) -> None:
         self.settings = settings or CaptureSettings()
         self.model = model
         self._thresholds = self.settings.stillness_thresholds()

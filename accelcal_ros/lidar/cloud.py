@@ -13,15 +13,21 @@ drivers write them:
 :func:`point_times` turns any of them into absolute seconds given the scan's base time.
 """
 import os
+from typing import Optional, Union
 
 from accelcal_ros.errors import FileFormatError, InputError
 import numpy as np
+from numpy.typing import ArrayLike
+
+PathLike = Union[str, 'os.PathLike[str]']
 
 TIME_FIELDS = ('time', 't', 'timestamp')
 """Recognised per-point time fields, in order of preference."""
 
 
-def make_cloud(xyz, intensity=None, ring=None, time=None, time_field='time', double=False):
+def make_cloud(xyz: ArrayLike, intensity: Optional[ArrayLike] = None,
+               ring: Optional[ArrayLike] = None, time: Optional[ArrayLike] = None,
+               time_field: str = 'time', double: bool = False) -> np.ndarray:
     """Build a structured cloud from ``(N, 3)`` points and optional per-point fields."""
     xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
     ftype = 'f8' if double else 'f4'
@@ -44,7 +50,7 @@ def make_cloud(xyz, intensity=None, ring=None, time=None, time_field='time', dou
     return cloud
 
 
-def xyz(cloud):
+def xyz(cloud: np.ndarray) -> np.ndarray:
     """Return the ``(N, 3)`` float64 points of a structured cloud (InputError without x y z)."""
     names = cloud.dtype.names or ()
     missing = [n for n in ('x', 'y', 'z') if n not in names]
@@ -55,12 +61,12 @@ def xyz(cloud):
     return out
 
 
-def finite_mask(points):
+def finite_mask(points: ArrayLike) -> np.ndarray:
     """Return a boolean mask of the rows of ``(N, 3)`` points that are all finite."""
     return np.all(np.isfinite(points), axis=1)
 
 
-def time_field_of(cloud, field=None):
+def time_field_of(cloud: np.ndarray, field: Optional[str] = None) -> str:
     """Return the name of the per-point time field, or raise InputError naming the fields."""
     names = cloud.dtype.names or ()
     if field:
@@ -77,7 +83,8 @@ def time_field_of(cloud, field=None):
                      '"organize_cloud: false" keeps "time")')
 
 
-def point_times(cloud, base_time_s=0.0, field=None):
+def point_times(cloud: np.ndarray, base_time_s: float = 0.0,
+                field: Optional[str] = None) -> np.ndarray:
     """
     Return absolute per-point times (s, float64).
 
@@ -94,7 +101,7 @@ def point_times(cloud, base_time_s=0.0, field=None):
     return base_time_s + values
 
 
-def read_cloud(path):
+def read_cloud(path: PathLike) -> np.ndarray:
     """Read a ``.pcd`` or ``.ply`` file into a structured array."""
     from accelcal_ros.lidar.pcd import read_pcd
     from accelcal_ros.lidar.ply import read_ply
@@ -107,7 +114,7 @@ def read_cloud(path):
     raise FileFormatError(path, f'unknown point cloud extension {ext!r} (.pcd or .ply)')
 
 
-def write_cloud(path, cloud, data='binary'):
+def write_cloud(path: PathLike, cloud: np.ndarray, data: str = 'binary') -> None:
     """Write a ``.pcd`` (``data``: ascii, binary, binary_compressed) or ``.ply`` atomically."""
     from accelcal_ros.lidar.pcd import write_pcd
     from accelcal_ros.lidar.ply import write_ply

@@ -22,7 +22,7 @@ Paper B's protocol: 15 static positions, the scanner tilted about its X axis by
 second of handling motion) and the scanner records one or more revolutions.
 """
 from dataclasses import dataclass, field
-from typing import List
+from typing import Any, List, Optional, Sequence, Tuple
 
 from accelcal_ros.frames import rot_x, rot_y, rotation_from_rpy_radians
 from accelcal_ros.lidar.cloud import make_cloud
@@ -30,6 +30,7 @@ from accelcal_ros.lidar.imu_log import ImuLog
 from accelcal_ros.lidar.poses import PoseStream
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 VLP16_ELEVATIONS_DEG = np.arange(-15.0, 16.0, 2.0)
@@ -46,7 +47,7 @@ class Room:
     height: float = 3.0
     boxes: List[tuple] = field(default_factory=lambda: [((2.0, 1.5, 0.0), (3.2, 2.3, 0.75))])
 
-    def cast(self, origins, directions):
+    def cast(self, origins: ArrayLike, directions: ArrayLike) -> np.ndarray:
         """Return the range (m) of each ray to the first surface (inf if none)."""
         o = np.asarray(origins, dtype=float)
         d = np.asarray(directions, dtype=float)
@@ -65,7 +66,7 @@ class Room:
                 t = np.where(hit & (near < t), near, t)
         return t
 
-    def surface_distance(self, points):
+    def surface_distance(self, points: ArrayLike) -> np.ndarray:
         """Return each point's distance (m) to the nearest surface of the scene."""
         p = np.asarray(points, dtype=float).reshape(-1, 3)
         lo = np.array([self.x_range[0], self.y_range[0], 0.0])
@@ -90,7 +91,7 @@ class Vlp16:
     max_range_m: float = 100.0
     min_range_m: float = 0.5
 
-    def beams(self, revolutions=1):
+    def beams(self, revolutions: int = 1) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return unit directions (M, 3), ring (M,), time offsets (M,) s, scanner frame."""
         per_rev = int(round(360.0 / self.azimuth_step_deg))
         firings = per_rev * revolutions
@@ -105,7 +106,8 @@ class Vlp16:
                  + np.arange(16)[None, :] * LASER_PERIOD_S).reshape(-1)
         return dirs, ring, times
 
-    def measure(self, true_range, rng):
+    def measure(self, true_range: np.ndarray,
+                rng: np.random.Generator) -> Tuple[np.ndarray, np.ndarray]:
         """Return noisy ranges and the mask of valid returns."""
         valid = np.isfinite(true_range) & (true_range >= self.min_range_m) \
             & (true_range <= self.max_range_m)
@@ -113,8 +115,10 @@ class Vlp16:
         return noisy, valid
 
 
-def scan_static(room, scanner, rotation_world_lidar, origin_world, revolutions=1, rng=None,
-                t0=0.0):
+def scan_static(room: Room, scanner: 'Vlp16', rotation_world_lidar: ArrayLike,
+                origin_world: ArrayLike, revolutions: int = 1,
+                rng: Optional[np.random.Generator] = None,
+                t0: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
     """
     One static scan; returns ``(cloud, truth_world)``.
 
@@ -133,7 +137,7 @@ def scan_static(room, scanner, rotation_world_lidar, origin_world, revolutions=1
     return make_cloud(pts, intensity, ring[valid], times[valid]), truth
 
 
-def paper_protocol_tilts_deg():
+def paper_protocol_tilts_deg() -> List[Tuple[float, float]]:
     """Return paper B's 15 (tilt about X, tilt about Y) pairs in degrees."""
     return [(a, b) for b in (-90.0, 0.0, 90.0) for a in (-90.0, -45.0, 0.0, 45.0, 90.0)]
 
@@ -149,9 +153,10 @@ class ProtocolPosition:
     gravity_true_imu: np.ndarray
 
 
-def simulate_imu_static(rotation_world_imu, duration_s, rate_hz, rng, model=None,
-                        accel_noise_m_s2=0.02, gyro_noise_rad_s=0.002, handling_s=1.0,
-                        t0=0.0):
+def simulate_imu_static(rotation_world_imu: ArrayLike, duration_s: float, rate_hz: float,
+                        rng: np.random.Generator, model: Any = None,
+                        accel_noise_m_s2: float = 0.02, gyro_noise_rad_s: float = 0.002,
+                        handling_s: float = 1.0, t0: float = 0.0) -> Tuple[ImuLog, np.ndarray]:
     """IMU log: ``handling_s`` of motion, then ``duration_s`` still (specific force, m/s^2)."""
     n_move = int(round(handling_s * rate_hz))
     n_still = int(round(duration_s * rate_hz))
@@ -173,7 +178,8 @@ def simulate_imu_static(rotation_world_imu, duration_s, rate_hz, rng, model=None
     return ImuLog(t, accel, gyro), f_true
 
 
-def box_room(size_m=(8.0, 8.0, 8.0), corner_m=(-4.0, -4.0)):
+def box_room(size_m: Sequence[float] = (8.0, 8.0, 8.0),
+             corner_m: Sequence[float] = (-4.0, -4.0)) -> Room:
     """
     Return an empty box-shaped room (m): ceiling and walls as large as the floor.
 
@@ -185,7 +191,7 @@ def box_room(size_m=(8.0, 8.0, 8.0), corner_m=(-4.0, -4.0)):
     return Room((x0, x0 + sx), (y0, y0 + sy), sz, [])
 
 
-def tilt_rotation(a_deg, b_deg, order='xy'):
+def tilt_rotation(a_deg: float, b_deg: float, order: str = 'xy') -> np.ndarray:
     """
     Return the scanner's orientation (LiDAR -> world) at tilt ``(a, b)`` deg.
 
@@ -200,9 +206,12 @@ def tilt_rotation(a_deg, b_deg, order='xy'):
     raise ValueError(f"order must be 'xy' or 'yx', got {order!r}")
 
 
-def simulate_protocol(boresight, tilts_deg=None, room=None, scanner=None, seed=0,
-                      scanner_origin=(0.0, 0.0, 1.2), imu_model=None, still_s=10.0,
-                      imu_rate_hz=200.0, revolutions=1, order='xy'):
+def simulate_protocol(boresight: ArrayLike,
+                      tilts_deg: Optional[Sequence[Tuple[float, float]]] = None,
+                      room: Optional[Room] = None, scanner: Optional['Vlp16'] = None,
+                      seed: int = 0, scanner_origin: Sequence[float] = (0.0, 0.0, 1.2),
+                      imu_model: Any = None, still_s: float = 10.0, imu_rate_hz: float = 200.0,
+                      revolutions: int = 1, order: str = 'xy') -> List['ProtocolPosition']:
     """
     Simulate paper B's static protocol; returns a list of :class:`ProtocolPosition`.
 
@@ -238,7 +247,7 @@ class Trajectory:
     pitch_amp_rad: float = 0.04
     wobble_hz: float = 0.7
 
-    def pose(self, t):
+    def pose(self, t: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
         """Return ``(C (N, 3, 3) body -> nav, p (N, 3))`` at times ``t`` (s)."""
         t = np.asarray(t, dtype=float).reshape(-1)
         p = np.asarray(self.start_m) + t[:, None] * np.asarray(self.velocity_m_s)
@@ -250,7 +259,7 @@ class Trajectory:
         c = Rotation.from_euler('xyz', np.stack([roll, pitch, yaw], axis=1)).as_matrix()
         return c, p
 
-    def pose_stream(self, t0, t1, rate_hz=200.0):
+    def pose_stream(self, t0: float, t1: float, rate_hz: float = 200.0) -> PoseStream:
         """Return the :class:`PoseStream` sampled at ``rate_hz`` over ``[t0, t1]``."""
         t = np.arange(t0, t1 + 0.5 / rate_hz, 1.0 / rate_hz)
         c, p = self.pose(t)
@@ -271,7 +280,7 @@ class MovingScene:
     room: Room
 
 
-def big_hall():
+def big_hall() -> Room:
     """Return a 60 x 40 x 8 m hall with pillars (the moving-platform scene)."""
     boxes = [((x, y, 0.0), (x + 0.6, y + 0.6, 8.0)) for x in (-10.0, 0.0, 10.0)
              for y in (-8.0, 8.0)]
@@ -279,10 +288,14 @@ def big_hall():
     return Room((-30.0, 30.0), (-20.0, 20.0), 8.0, boxes)
 
 
-def simulate_moving_platform(duration_s=1.0, seed=0, boresight=None,
-                             lever_arm_m=(0.3, -0.1, 0.25), pose_rate_hz=200.0,
-                             scan_start_s=100.0, range_noise_m=0.03, trajectory=None, room=None,
-                             pose_margin_s=0.05):
+def simulate_moving_platform(duration_s: float = 1.0, seed: int = 0,
+                             boresight: Optional[ArrayLike] = None,
+                             lever_arm_m: Sequence[float] = (0.3, -0.1, 0.25),
+                             pose_rate_hz: float = 200.0, scan_start_s: float = 100.0,
+                             range_noise_m: float = 0.03,
+                             trajectory: Optional['Trajectory'] = None,
+                             room: Optional[Room] = None,
+                             pose_margin_s: float = 0.05) -> 'MovingScene':
     """
     Simulate a scanner on a moving platform; the truth is the noiseless world points.
 
@@ -316,17 +329,18 @@ def simulate_moving_platform(duration_s=1.0, seed=0, boresight=None,
     return MovingScene(cloud, scan_start_s, poses, truth, boresight, lever, trajectory, room)
 
 
-def default_boresight():
+def default_boresight() -> np.ndarray:
     """Return the simulated rig's true boresight: a few degrees off a 45 deg mount."""
     return rotation_from_rpy_radians(*np.radians([1.2, -2.1, 3.4])) @ rot_y(np.radians(45.0))
 
 
-def nominal_mount():
+def nominal_mount() -> np.ndarray:
     """Return the nominal mounting (the prior): the LiDAR pitched 45 deg (paper B Fig. 2)."""
     return rot_y(np.radians(45.0))
 
 
-def positions_for_calibration(protocol, model=None):
+def positions_for_calibration(protocol: Sequence['ProtocolPosition'],
+                              model: Any = None) -> List[Any]:
     """Turn simulated positions into boresight inputs (static segment + gravity)."""
     from accelcal_ros.lidar.boresight import StaticPosition
     from accelcal_ros.lidar.cloud import xyz
@@ -342,7 +356,8 @@ def positions_for_calibration(protocol, model=None):
     return out
 
 
-def write_protocol(directory, protocol, data='binary_compressed'):
+def write_protocol(directory: Any, protocol: Sequence['ProtocolPosition'],
+                   data: str = 'binary_compressed') -> None:
     """Write simulated positions as ``posNN.pcd`` + ``posNN_imu.csv`` (the CLI's input)."""
     import os
 
