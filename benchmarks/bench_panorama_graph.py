@@ -14,7 +14,7 @@ One run, one machine, processes as a user has them:
    counting panoramas per second and the latency (frame stamp to panorama receipt);
 4. the node again with nobody subscribing ``panorama`` (it then skips serialising and
    publishing): its own rate, from ``/diagnostics``. The difference is the cost of
-   moving a 3600x2400 panorama (26 MB) from process to process.
+   moving the panorama (26 MB at 3600x2400, 6 MB at 1728x1152) from process to process.
 
 Targets (issue 16): the stitcher's rate at least 0.9x the floor's complete frame sets
 (same run), and 25 fps for 5 x 640x480 at 25 Hz. ``--stages`` prints the per-set cost
@@ -22,7 +22,8 @@ of each stage in one process (take/deserialise, convert, copy into the mosaic, r
 remap, build + publish), the node's path before (deserialised messages, arrays copied)
 and now (raw buffers, numpy views, serialized output). Short runs are indicative only:
 Run: ``python benchmarks/bench_panorama_graph.py [--duration 10] [--configs 5x1280x960@10
-5x640x480@25] [--stages]``.
+5x640x480@25] [--stages] [--size 3600x2400]`` (``--size``: a fixed panorama size, as
+before issue 16; default: the node's, the cameras' resolution).
 """
 import argparse
 import json
@@ -198,16 +199,31 @@ def sink(args):
         node.create_subscription(PoseStamped, args.topic, lambda m: on_msg(
             m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec), qos)
 
+    received = []                           # (time, frames the node received, all cameras)
+
     def on_diag(msg):
+        frames = 0
         for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
             if status.name.startswith(args.diag_prefix):
-                state['diag'] = {kv.key: kv.value for kv in status.values}
+                state['diag'] = values
+            frames += int(values.get('received_frames', 0))
+        received.append((time.monotonic(), frames))
+
+    def input_rate():
+        """Frames per second the node received (all cameras, its diagnostics)."""
+        start = time.monotonic() - args.duration
+        window = [r for r in received if r[0] >= start]
+        if len(window) < 2 or window[-1][0] <= window[0][0]:
+            return math.nan
+        return (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
 
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
     if args.diag_only:                      # nobody subscribes the output: the node's rate
         _spin_for(rclpy, node, 90.0, lambda: state['diag'].get('published', '0') != '0')
         _spin_for(rclpy, node, args.warmup + args.duration)
         print(json.dumps({'per_s': float(state['diag'].get('rate_hz', 'nan')),
+                          'node_input_frames_per_s': input_rate(),
                           'diagnostics': state['diag']}))
         rclpy.shutdown()
         return
@@ -217,6 +233,7 @@ def sink(args):
     print(json.dumps({'per_s': state['count'] / args.duration,
                       'latency_ms': 1e3 * statistics.median(lat),
                       'latency_p90_ms': 1e3 * lat[int(0.9 * (len(lat) - 1))],
+                      'node_input_frames_per_s': input_rate(),
                       'diagnostics': state['diag']}))
     rclpy.shutdown()
 
@@ -277,8 +294,12 @@ def run_graph(publisher_options, phases, duration, warmup):
     return results
 
 
-def graph_config(config, duration, warmup, workdir):
-    """Measure one ``NxWxH@RATE`` configuration; returns the results by phase."""
+def graph_config(config, duration, warmup, workdir, size=''):
+    """
+    Measure one ``NxWxH@RATE`` configuration; returns the results by phase.
+
+    ``size`` ``'WxH'`` sets the panorama size; empty: the node's default (from the rig).
+    """
     from graph_harness.graph import NodeProcess
     from accelcal_ros.panorama.rig import ring_rig, save_rig
 
@@ -295,8 +316,10 @@ def graph_config(config, duration, warmup, workdir):
         return lambda: ([], child('bare', *common, *(['--raw'] if raw else [])))
 
     def node_phase(diag_only=False):
-        node = NodeProcess('stitcher', {'rig_file': rig_path, 'camera_topics':
-                                        topics.split(',')}, log_dir=workdir)
+        params = {'rig_file': rig_path, 'camera_topics': topics.split(',')}
+        if size:
+            params['width'], params['height'] = (int(v) for v in size.split('x'))
+        node = NodeProcess('stitcher', params, log_dir=workdir)
         return [node], child('sink', '--topic', 'panorama', '--msg-type', 'image',
                              '--diag-prefix', 'stitcher: panorama', '--duration', duration,
                              '--warmup', warmup, *(['--diag-only'] if diag_only else []))
@@ -336,9 +359,10 @@ def report(config, results, target_fps=None, ratio=0.9, what='panoramas'):
 
 
 # -- per-stage cost in one process ------------------------------------------------------
-def stages(config, repeats):
+def stages(config, repeats, size_option=''):
     """Print each stage's cost per frame set, the node's path before and now."""
     import cv2
+    from accelcal_ros.panorama.params import panorama_size_from_focal, reference_focal_px
     from accelcal_ros.panorama.projection import PanoramaGeometry
     from accelcal_ros.panorama.rig import ring_rig
     from accelcal_ros.panorama.stitch import Stitcher
@@ -352,7 +376,9 @@ def stages(config, repeats):
     width, height = (int(v) for v in size.split('x'))
     count = int(count)
     rig = ring_rig(count, width, height, 1100.0 * width / 1280.0, 36.0)
-    stitcher = Stitcher(rig, PanoramaGeometry(3600, 2400))
+    out_w, out_h = (int(v) for v in size_option.split('x')) if size_option else \
+        panorama_size_from_focal(reference_focal_px(rig), 180.0, 120.0)
+    stitcher = Stitcher(rig, PanoramaGeometry(out_w, out_h))
     rng = np.random.default_rng(0)
     wire = [serialize_message(array_to_image_msg(
         rng.integers(0, 256, (height, width, 3), dtype=np.uint8), 'bgr8', Image))
@@ -388,7 +414,8 @@ def stages(config, repeats):
         timed('JPEG (compressed_output)', cv2.imencode, '.jpg', panorama,
               [cv2.IMWRITE_JPEG_QUALITY, 80])
         del images
-    print(f'\nper frame set, {config}, into 3600x2400 (median of {repeats}, one process):')
+    print(f'\nper frame set, {config}, into {out_w}x{out_h} (median of {repeats}, one '
+          'process):')
     for name, values in times.items():
         print(f'  {name:30s} {1e3 * statistics.median(values):7.1f} ms')
 
@@ -403,6 +430,8 @@ def main():
     parser.add_argument('--configs', nargs='+', default=list(CONFIGS),
                         help='NxWIDTHxHEIGHT@RATE_HZ (cameras, size, rate)')
     parser.add_argument('--stages', action='store_true', help='per-stage costs only')
+    parser.add_argument('--size', default='', help='panorama WIDTHxHEIGHT (e.g. 3600x2400, '
+                        'the fixed size before issue 16); default: that of the node, from the rig')
     parser.add_argument('--repeats', type=int, default=10, help='sets for --stages')
     parser.add_argument('--topics', default='')
     parser.add_argument('--width', type=int, default=1280)
@@ -426,14 +455,16 @@ def main():
         return {'publisher': publisher, 'bare': bare, 'sink': sink}[args.role](args)
     if args.stages:
         for config in args.configs:
-            stages(config, args.repeats)
+            stages(config, args.repeats, args.size)
         return 0
     holder = isolated_domain()
     print(f'stitcher in a ROS graph, {args.duration:g} s per phase (ROS_DOMAIN_ID '
-          f'{os.environ.get("ROS_DOMAIN_ID", "0")}); indicative on a loaded machine')
+          f'{os.environ.get("ROS_DOMAIN_ID", "0")}); panorama size '
+          f'{args.size or "the default (from the rig)"}; load average '
+          f'{" ".join(f"{x:.2f}" for x in os.getloadavg())}; indicative on a loaded machine')
     with tempfile.TemporaryDirectory() as workdir:
         for config in args.configs:
-            results = graph_config(config, args.duration, args.warmup, workdir)
+            results = graph_config(config, args.duration, args.warmup, workdir, args.size)
             fps = float(config.split('@')[1]) if config.startswith('5x640x480') else None
             report(config, results, target_fps=fps)
     del holder

@@ -137,7 +137,8 @@ STITCHER_PARAMS = [
               'starts again, logged and counted in /diagnostics', minimum=0.1,
               maximum=3600.0, unit='s', read_only=True),
     ParamSpec('rebuild_threshold_deg', 0.01, 'the lookup is rebuilt when the tilt moves by '
-              'more than this', minimum=0.0, maximum=10.0, unit='deg'),
+              'more than this (0.01: 0.1 px of a panorama of f = 550 px/rad)', minimum=0.0,
+              maximum=10.0, unit='deg'),
     ParamSpec('grid_step', 20, 'cell size of the fast lookup rebuild (even; the largest '
               'even divisor of width not above it is used)', minimum=4, maximum=128,
               unit='px', validator=_even, read_only=True),
