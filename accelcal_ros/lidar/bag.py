@@ -123,7 +123,7 @@ def georeference_scans(bag: BagReader, points_topic: Optional[str], poses, bores
         totals['total'] += int((~good).sum())
         if stats.kept:
             sub = cloud[good][keep]
-            names = cloud.dtype.names
+            names = cloud.dtype.names or ()
             parts.append(make_cloud(out, sub['intensity'] if 'intensity' in names else None,
                                     sub['ring'] if 'ring' in names else None,
                                     times[good][keep], 'timestamp', double=True))

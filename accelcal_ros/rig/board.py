@@ -12,9 +12,11 @@ black and white, which is how :mod:`.detect` tells the two orderings apart.
 """
 from dataclasses import dataclass
 import re
+from typing import Tuple
 
 from accelcal_ros.errors import InputError
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -66,8 +68,8 @@ class Board:
         return np.array([(self.cols - 1) / 2.0, (self.rows - 1) / 2.0, 0.0]) * self.square_m
 
     def reflectance(self, x_m: np.ndarray, y_m: np.ndarray, margin_squares: float = 1.0,
-                    background: float = np.nan, width_x_m: np.ndarray = 0.0,
-                    width_y_m: np.ndarray = 0.0) -> np.ndarray:
+                    background: float = np.nan, width_x_m: ArrayLike = 0.0,
+                    width_y_m: ArrayLike = 0.0) -> np.ndarray:
         """
         Brightness in [0, 1] at board points ``(x_m, y_m)``: 0 black, 1 white.
 
@@ -102,7 +104,7 @@ class Board:
                 * np.minimum(1.0, 2.0 * np.abs(g - edge) / width))
 
 
-def parse_board_size(text: str) -> tuple:
+def parse_board_size(text: str) -> Tuple[int, int]:
     """Parse ``COLSxROWS`` (inner corners, e.g. ``9x6``) into ``(cols, rows)``."""
     match = re.fullmatch(r'\s*(\d+)\s*[xX]\s*(\d+)\s*', str(text))
     if not match:

@@ -23,6 +23,7 @@ from accelcal_ros.rig.imu_to_camera import (fit_imu_to_camera, gravity_spread_wa
                                             MountFit)
 from accelcal_ros.rig.intrinsics import (calibrate_camera, coverage_fraction, Intrinsics,
                                          load_camera_info, per_view_errors)
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 
 MIN_VIEWS_PER_CAMERA = 6
@@ -60,8 +61,10 @@ class RigCalibration:
         return [lens[1] for lens in self.fit.lenses]
 
 
-def _detect_all(dataset: Dataset, board: Board):
-    detections, failed = {}, []
+def _detect_all(dataset: Dataset, board: Board
+                ) -> Tuple[Dict[Tuple[str, int], np.ndarray], List[str]]:
+    detections: Dict[Tuple[str, int], np.ndarray] = {}
+    failed: List[str] = []
     for pose in dataset.poses:
         for i, cam in enumerate(dataset.cameras):
             path = dataset.image_path(pose, cam)
@@ -94,7 +97,9 @@ def _detect_all(dataset: Dataset, board: Board):
     return detections, failed
 
 
-def _intrinsics(dataset, board, detections, files):
+def _intrinsics(dataset: Dataset, board: Board,
+                detections: Dict[Tuple[str, int], np.ndarray],
+                files: Sequence[str]) -> List[Intrinsics]:
     given: Dict[str, Intrinsics] = {}
     for path in files:
         name, intr = load_camera_info(path)
@@ -122,7 +127,8 @@ def _intrinsics(dataset, board, detections, files):
     return out
 
 
-def _fov_overlap(k_i, size_i, r_i, k_j, size_j, r_j) -> bool:
+def _fov_overlap(k_i: np.ndarray, size_i: Tuple[int, int], r_i: np.ndarray,
+                 k_j: np.ndarray, size_j: Tuple[int, int], r_j: np.ndarray) -> bool:
     half = [np.arctan(0.5 * s[0] / k[0, 0]) for k, s in ((k_i, size_i), (k_j, size_j))]
     angle = np.arccos(np.clip(r_i[2] @ r_j[2], -1.0, 1.0))
     return bool(angle < half[0] + half[1] - np.radians(10.0))
@@ -156,7 +162,8 @@ def _warnings(result: RigCalibration) -> List[str]:
 
 
 def calibrate_directory(directory: str, board: Board, intrinsics_files: Sequence[str] = (),
-                        accel_model: object = None, reference: Optional[str] = None,
+                        accel_model: Optional[SensorModel] = None,
+                        reference: Optional[str] = None,
                         estimate_tilt: bool = True) -> RigCalibration:
     """Calibrate the rig of ``directory`` (see the module docstring); raises AccelcalError."""
     start = time.perf_counter()

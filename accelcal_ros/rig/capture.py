@@ -20,6 +20,7 @@ from accelcal_ros.rig.calibrate import (calibrate_directory, MIN_SHARED_VIEWS,
                                         MIN_VIEWS_PER_CAMERA, RigCalibration)
 from accelcal_ros.rig.detect import detect_board
 from accelcal_ros.rig.intrinsics import coverage_fraction
+from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.recording import save_recording
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 import cv2
@@ -132,7 +133,8 @@ class RigCapture:
         """Per camera views and coverage, per pair shared views, and the next step."""
         cams = {}
         for cam in self.cameras:
-            size = self._frames[cam][1].shape[::-1] if cam in self._frames else None
+            shape = self._frames[cam][1].shape if cam in self._frames else None
+            size = (shape[1], shape[0]) if shape is not None else None
             cams[cam] = {'views': len(self.views[cam]),
                          'coverage': round(coverage_fraction(self.views[cam], size), 3)
                          if size and self.views[cam] else 0.0}
@@ -155,7 +157,7 @@ class RigCapture:
                 'shared_views': pairs,
                 'next': todo[0] if todo else 'enough poses: call rig_calibration/finish'}
 
-    def finish(self, reference: Optional[str] = None, accel_model: object = None
+    def finish(self, reference: Optional[str] = None, accel_model: Optional[SensorModel] = None
                ) -> RigCalibration:
         """Calibrate the capture directory (raises AccelcalError with what is missing)."""
         return calibrate_directory(self.directory, self.board, (), accel_model, reference)

@@ -12,6 +12,7 @@ import os
 from typing import Dict, List, Optional, Tuple
 
 from accelcal_ros.errors import FileFormatError, InputError
+from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.recording import load_recording
 from accelcal_ros.sensor.stillness import still_segments, StillnessThresholds
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
@@ -89,7 +90,7 @@ def check_size(dataset: Dataset, camera: str, pose: str, image: np.ndarray) -> N
                          'must keep one resolution')
 
 
-def pose_gravity(path: str, model: object = None,
+def pose_gravity(path: str, model: Optional[SensorModel] = None,
                  thresholds: Optional[StillnessThresholds] = None
                  ) -> Tuple[Optional[np.ndarray], str]:
     """

@@ -66,9 +66,11 @@ def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.
                 f'camera {name}: only {len(ids)} usable board view(s), need at least '
                 f'{MIN_VIEWS} for its intrinsics: add poses where {name} sees the whole board '
                 '(near the image corners and tilted), or give --intrinsics for it')
-        rms, k, d, _, _, _, _, per_view = cv2.calibrateCameraExtended(
+        # the stubs do not allow None for the initial camera matrix / distortion (OpenCV does)
+        result = cv2.calibrateCameraExtended(  # type: ignore[call-overload]
             [obj] * len(ids), [views[i].astype(np.float32) for i in ids], tuple(size),
             None, None, flags=flags)
+        rms, k, d, _, _, _, _, per_view = result
         per_view = np.asarray(per_view, dtype=float).ravel()
         limit = max(min_drop_px, drop_factor * float(np.median(per_view)))
         bad = [(i, e) for i, e in zip(ids, per_view) if e > limit]
@@ -83,7 +85,7 @@ def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.
     if not np.all(np.isfinite(k)) or not np.all(np.isfinite(d5)):
         raise CalibrationError(f'camera {name}: calibration diverged; check the board size '
                                'and square, or give --intrinsics for it')
-    return Intrinsics(np.asarray(k, dtype=float), d5, tuple(size), float(rms),
+    return Intrinsics(np.asarray(k, dtype=float), d5, (int(size[0]), int(size[1])), float(rms),
                       {i: float(e) for i, e in zip(ids, per_view)}, dropped)
 
 

@@ -1,9 +1,11 @@
 """Parameters of the ``rig_calibration`` node (pure specifications)."""
+from typing import List, Optional
+
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.rig.board import parse_board_size
 
 
-def _board_ok(value: str) -> object:
+def _board_ok(value: str) -> Optional[str]:
     try:
         cols, rows = parse_board_size(value)
     except ValueError as exc:
@@ -13,7 +15,7 @@ def _board_ok(value: str) -> object:
     return None
 
 
-def _names_ok(value: list) -> object:
+def _names_ok(value: List[str]) -> Optional[str]:
     if not value or len(set(value)) != len(value) or not all(value):
         return 'give one or more distinct camera names'
     return None

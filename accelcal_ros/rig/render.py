@@ -139,17 +139,18 @@ def board_in_camera(truth: RigTruth, pose: PoseTruth,
 
 
 @functools.lru_cache(maxsize=64)
-def _bounds_cached(k: tuple, d: tuple, size: tuple) -> np.ndarray:
+def _bounds_cached(k: Tuple[float, ...], d: Tuple[float, ...],
+                   size: Tuple[int, ...]) -> np.ndarray:
     w, h = size
-    k = np.array(k).reshape(3, 3)
-    d = np.array(d)
+    k_matrix = np.array(k).reshape(3, 3)
+    d_coeffs = np.array(d)
     u = np.linspace(0, w - 1, 33)
     v = np.linspace(0, h - 1, 25)
     border = np.concatenate([np.stack([u, np.zeros_like(u)], 1),
                              np.stack([u, np.full_like(u, h - 1)], 1),
                              np.stack([np.zeros_like(v), v], 1),
                              np.stack([np.full_like(v, w - 1), v], 1)])
-    xy = _undistort(border, k, d)
+    xy = _undistort(border, k_matrix, d_coeffs)
     return np.array([xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max()])
 
 
