@@ -1,8 +1,12 @@
 """Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``."""
+import argparse
+import os
+
 from accelcal_ros.cli_args import float_in, int_in, nonnegative_int
 
 
-def register(subparsers: object, study_subparsers: object) -> None:
+def register(subparsers: argparse._SubParsersAction,
+             study_subparsers: argparse._SubParsersAction) -> None:
     """Add the rig subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
         'rig-calibrate', help='camera intrinsics, rig rotations R_0i and imu_to_camera',
@@ -10,7 +14,11 @@ def register(subparsers: object, study_subparsers: object) -> None:
                     'on a floor or table, seen by one or more cameras) and DIR/poseNN/imu.csv '
                     '(t,ax,ay,az in s and m/s^2, rig still). Writes the rig file (the '
                     "stitcher's format plus imu_to_camera), <stem>_report.yaml and <stem>.png.")
-    p.add_argument('directory', metavar='DIR')
+    p.add_argument('directory', metavar='DIR_OR_BAG',
+                   help='capture directory, or a bag (rosbag2 directory, .mcap, .db3, ROS 1 '
+                        '.bag) with the image topics and the IMU; still poses are found '
+                        'from the IMU')
+    _add_bag_arguments(p)
     p.add_argument('--board', required=True, metavar='COLSxROWS',
                    help='inner corners as OpenCV counts them, e.g. 9x6 (one even, one odd)')
     p.add_argument('--square-m', required=True, type=float_in(0.0, 10.0, low_open=True),
@@ -37,7 +45,55 @@ def register(subparsers: object, study_subparsers: object) -> None:
     s.set_defaults(handler=_study)
 
 
-def _calibrate(args: object) -> int:
+def _add_bag_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``rig-calibrate BAG``: topics, frame-set tolerance, still time, export."""
+    from accelcal_ros.recording.cli_support import add_stamp_argument
+
+    p.add_argument('--images', dest='image_topics', nargs='+', metavar='TOPIC',
+                   help='bag: image topics (sensor_msgs/Image or CompressedImage), one per '
+                        'camera, named after the topic (/cam0/image_raw: cam0); default: '
+                        'every image topic')
+    p.add_argument('--imu', dest='imu_topic', metavar='TOPIC',
+                   help='bag: sensor_msgs/Imu topic (default: the only one)')
+    p.add_argument('--sync-s', type=float_in(0.0, 10.0, low_open=True), default=0.05,
+                   help='bag: largest spread of the stamps of one frame set (s)')
+    p.add_argument('--min-still-s', type=float_in(0.0, 3600.0, low_open=True), default=1.0,
+                   help='bag: shortest still period taken as a pose (s)')
+    p.add_argument('--export', metavar='DIR',
+                   help='bag: also keep the extracted capture directory (poseNN/<camera>.png, '
+                        'imu.csv) here; it must not exist')
+    add_stamp_argument(p)
+
+
+def _calibrate_bag(args: argparse.Namespace, board: object, model: object) -> object:
+    """Extract the still poses of a bag into a capture directory and calibrate it."""
+    import tempfile
+
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.rig.bag import extract_capture
+    from accelcal_ros.rig.calibrate import calibrate_directory
+
+    if args.export and os.path.exists(args.export):
+        raise InputError(f'--export {args.export} exists; name a new folder')
+    with tempfile.TemporaryDirectory(prefix='accelcal_rig_') as tmp:
+        directory = args.export or os.path.join(tmp, 'capture')
+        with open_bag(args.directory, args.stamp) as bag:
+            capture = extract_capture(bag, args.image_topics, args.imu_topic, directory,
+                                      args.sync_s, args.min_still_s)
+        warn(capture.warnings)
+        for topic, name in zip(capture.topics, capture.cameras):
+            print(f'camera {name}: {topic}')
+        for line in capture.spans:
+            print(line)
+        result = calibrate_directory(directory, board, args.intrinsics, model,
+                                     args.reference, estimate_tilt=not args.level_board)
+    result.dropped_poses.update(capture.dropped)
+    return result
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from accelcal_ros.recording.bag import is_bag
     from accelcal_ros.rig.board import Board, parse_board_size
     from accelcal_ros.rig.calibrate import calibrate_directory
     from accelcal_ros.rig.report import report_lines, write_outputs
@@ -49,8 +105,11 @@ def _calibrate(args: object) -> int:
         from accelcal_ros.sensor.calibration_file import load_sensor_model
 
         model = load_sensor_model(args.calibration)
-    result = calibrate_directory(args.directory, board, args.intrinsics, model,
-                                 args.reference, estimate_tilt=not args.level_board)
+    if is_bag(args.directory):
+        result = _calibrate_bag(args, board, model)
+    else:
+        result = calibrate_directory(args.directory, board, args.intrinsics, model,
+                                     args.reference, estimate_tilt=not args.level_board)
     for line in report_lines(result):
         print(line)
     for path in write_outputs(args.output, result):
@@ -58,7 +117,7 @@ def _calibrate(args: object) -> int:
     return 0
 
 
-def _study(args: object) -> int:
+def _study(args: argparse.Namespace) -> int:
     from accelcal_ros.rig.study import run_study
 
     for line in run_study(args.poses, args.seed):
