@@ -22,16 +22,19 @@ from typing import Dict, List, Optional, Tuple
 from accelcal_ros.errors import InputError
 from accelcal_ros.lidar.boresight import StaticPosition
 from accelcal_ros.lidar.cloud import finite_mask, make_cloud, point_times, xyz
+from accelcal_ros.lidar.poses import PoseStream
 from accelcal_ros.lidar.static_segments import find_static_segments
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagReader
 from accelcal_ros.recording.streams import (check_stamps, message_time_ns, message_time_s,
                                             read_imu)
+from accelcal_ros.sensor.model import SensorModel
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Optional[str],
-                      model=None, clouds_per_position: int = 1,
+                      model: Optional[SensorModel] = None, clouds_per_position: int = 1,
                       static_options: Optional[dict] = None
                       ) -> Tuple[List[StaticPosition], Dict[str, str], List[str], List[str]]:
     """
@@ -91,8 +94,10 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
     return positions, dropped, spans, warnings
 
 
-def georeference_scans(bag: BagReader, points_topic: Optional[str], poses, boresight,
-                       lever_arm_m=(0.0, 0.0, 0.0), time_field: Optional[str] = None):
+def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseStream,
+                       boresight: ArrayLike, lever_arm_m: ArrayLike = (0.0, 0.0, 0.0),
+                       time_field: Optional[str] = None
+                       ) -> Tuple[np.ndarray, Dict[str, int], List[str]]:
     """
     Georeference every scan of a PointCloud2 topic; returns ``(cloud, totals, warnings)``.
 

@@ -4,10 +4,13 @@ Command line of the LiDAR feature (paper B).
 ``accelcal boresight``, ``accelcal georeference``, ``accelcal error-budget`` and
 ``accelcal study boresight``.
 """
+import argparse
+
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, positive_int
 
 
-def register(subparsers, study_subparsers):
+def register(subparsers: argparse._SubParsersAction,
+             study_subparsers: argparse._SubParsersAction) -> None:
     """Add the LiDAR subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
         'boresight', help='LiDAR-IMU boresight from static positions (paper B)',
@@ -95,13 +98,13 @@ def register(subparsers, study_subparsers):
     s.set_defaults(handler=_study)
 
 
-def _is_bag(path):
+def _is_bag(path: str) -> bool:
     from accelcal_ros.recording.cli_support import is_bag
 
     return is_bag(path)
 
 
-def _add_boresight_bag_arguments(p):
+def _add_boresight_bag_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``boresight BAG``: topics, stamps, scans per still period."""
     from accelcal_ros.recording.cli_support import add_stamp_argument
 
@@ -139,7 +142,7 @@ def _boresight_from_bag(args, prior, model):
     return result
 
 
-def _add_georeference_bag_arguments(g):
+def _add_georeference_bag_arguments(g: argparse.ArgumentParser) -> None:
     """Options of ``georeference BAG``."""
     from accelcal_ros.recording.cli_support import add_stamp_argument
 
@@ -154,7 +157,7 @@ def _add_georeference_bag_arguments(g):
     add_stamp_argument(g)
 
 
-def _georeference_bag(args):
+def _georeference_bag(args: argparse.Namespace) -> int:
     """Georeference every scan of a bag's PointCloud2 topic into one cloud."""
     from accelcal_ros.lidar.boresight import load_boresight
     from accelcal_ros.lidar.cloud import write_cloud
@@ -194,7 +197,7 @@ def _search_from(args):
     return search
 
 
-def _boresight(args):
+def _boresight(args: argparse.Namespace) -> int:
     from accelcal_ros.frames import rotation_from_rpy_radians
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)
@@ -224,7 +227,7 @@ def _boresight(args):
     return 0
 
 
-def _georeference(args):
+def _georeference(args: argparse.Namespace) -> int:
     if args.bag:
         return _georeference_bag(args)
     if not args.cloud or not args.poses:
@@ -259,7 +262,7 @@ def _georeference(args):
         raise InputError(f'no point of {args.cloud} lies in the span of the pose stream '
                          f'[{t0:.3f}, {t1:.3f}] s (points {np.nanmin(times):.3f}..'
                          f'{np.nanmax(times):.3f} s): wrong --time-base?')
-    names = cloud.dtype.names
+    names = cloud.dtype.names or ()
     out = make_cloud(pts, cloud['intensity'][keep] if 'intensity' in names else None,
                      cloud['ring'][keep] if 'ring' in names else None, times[keep],
                      'timestamp', double=True)
@@ -269,7 +272,7 @@ def _georeference(args):
     return 0
 
 
-def _error_budget(args):
+def _error_budget(args: argparse.Namespace) -> int:
     from accelcal_ros.lidar.error_budget import error_budget, paper_totals_m, sync_error_m
 
     sync = sync_error_m(args.sync_s, args.speed_m_s, args.rate_deg_s, args.range_m) \
@@ -286,14 +289,16 @@ def _error_budget(args):
     return 0
 
 
-def _study(args):
+def _study(args: argparse.Namespace) -> int:
     from accelcal_ros.lidar import scanner_sim as sim
     from accelcal_ros.lidar.boresight import calibrate_boresight, rotation_angle_deg
     import numpy as np
 
     truth = sim.default_boresight()
     errs, means = [], []
-    for seed in range(args.trials):
+    from accelcal_ros.recording.progress import track
+
+    for seed in track(range(args.trials), 'boresight study'):
         protocol = sim.simulate_protocol(truth, seed=seed)
         positions = sim.positions_for_calibration(protocol)
         res = calibrate_boresight(positions, None if args.no_prior else sim.nominal_mount(),
