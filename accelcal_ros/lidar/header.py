@@ -1,14 +1,17 @@
 """Read a point-cloud file and walk the text header at its start (PCD and PLY)."""
-from accelcal_ros.errors import FileFormatError
+from typing import Iterator, Tuple
+
+from accelcal_ros.errors import FileFormatError, PathLike
 from accelcal_ros.fileio import read_input_bytes
 
 
-def read_file_bytes(path, what='point cloud file'):
+def read_file_bytes(path: PathLike, what: str = 'point cloud file') -> bytes:
     """Return the whole content of ``path``; FileFormatError when it cannot be read."""
     return read_input_bytes(path, what)
 
 
-def header_lines(path, raw, missing_end):
+def header_lines(path: PathLike, raw: bytes,
+                 missing_end: str) -> Iterator[Tuple[int, str, int]]:
     """
     Yield ``(line_no, text, offset)`` for each header line of ``raw`` (bytes).
 

@@ -21,6 +21,7 @@ which; ``ACCELCAL_LZF=python`` forces the fallback). Streams written by either a
 PCL and by the other.
 """
 import os
+from typing import Optional, Union
 
 import numpy as np
 
@@ -28,6 +29,9 @@ try:
     import lzf as _clzf
 except ImportError:  # python-neo-lzf not installed: pure Python below
     _clzf = None
+
+#: what the functions take: any bytes-like object
+BytesLike = Union[bytes, bytearray, memoryview]
 
 MAX_OFFSET = 8192
 MAX_LITERAL = 32
@@ -39,7 +43,7 @@ MAX_RATIO = MAX_MATCH // 3
 class LzfError(ValueError):
     """The compressed stream is corrupt or does not match the expected size."""
 
-    def __init__(self, message, offset=None):
+    def __init__(self, message: str, offset: Optional[int] = None) -> None:
         self.offset = offset
         super().__init__(message if offset is None else
                          f'{message} (at compressed byte {offset})')
@@ -57,18 +61,18 @@ def _use_c() -> bool:
 BACKEND = 'c' if _use_c() else 'python'
 
 
-def compress(data) -> bytes:
+def compress(data: BytesLike) -> bytes:
     """Return ``data`` LZF-compressed (C liblzf when installed, else pure Python)."""
     return compress_c(data) if _use_c() else compress_python(data)
 
 
-def decompress(data, expected_size: int) -> bytes:
+def decompress(data: BytesLike, expected_size: int) -> bytes:
     """Return the ``expected_size`` bytes encoded in ``data``; :class:`LzfError` if corrupt."""
     return decompress_c(data, expected_size) if _use_c() else \
         decompress_python(data, expected_size)
 
 
-def compress_c(data) -> bytes:
+def compress_c(data: BytesLike) -> bytes:
     """Compress with liblzf (``python-neo-lzf``); the stream never exceeds the worst case."""
     raw = bytes(data)
     if not raw:
@@ -80,7 +84,7 @@ def compress_c(data) -> bytes:
     return bytes(out)
 
 
-def decompress_c(data, expected_size: int) -> bytes:
+def decompress_c(data: BytesLike, expected_size: int) -> bytes:
     """Decompress with liblzf; :class:`LzfError` when corrupt or not ``expected_size``."""
     src = bytes(data)
     if expected_size == 0 or not src:
@@ -98,7 +102,7 @@ def decompress_c(data, expected_size: int) -> bytes:
     return bytes(out)
 
 
-def decompress_python(data, expected_size: int) -> bytes:
+def decompress_python(data: BytesLike, expected_size: int) -> bytes:
     """Pure-Python :func:`decompress` (the fallback; same errors)."""
     src = bytes(data)
     out = bytearray()
@@ -155,7 +159,7 @@ def _previous_match(buf):
     return prev
 
 
-def compress_python(data) -> bytes:
+def compress_python(data: BytesLike) -> bytes:
     """Return ``data`` (bytes-like) LZF-compressed in pure Python (greedy, nearest match)."""
     raw = bytes(data)
     n = len(raw)

@@ -12,8 +12,9 @@ usual ones are ``x y z`` (m, LiDAR frame), ``intensity``, ``ring`` and a per-poi
 atomic (:func:`accelcal_ros.fileio.write_bytes_atomic`).
 """
 import os
+from typing import Any, Dict, Sequence, Tuple
 
-from accelcal_ros.errors import FileFormatError
+from accelcal_ros.errors import FileFormatError, PathLike
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.lidar import lzf
 from accelcal_ros.lidar.header import header_lines, read_file_bytes
@@ -76,7 +77,7 @@ def _parse_header(path, raw):
             return header, lines, offset, line_no
 
 
-def read_pcd(path):
+def read_pcd(path: PathLike) -> Tuple[np.ndarray, Dict[str, Any]]:
     """Return ``(cloud, meta)``: a structured array and ``{'viewpoint', 'data', 'width'}``."""
     path = os.fspath(path)
     raw = read_file_bytes(path)
@@ -229,9 +230,13 @@ def _header_text(cloud, data, viewpoint, width=None, height=None):
             f'POINTS {n}\nDATA {data}\n')
 
 
-def pcd_bytes(cloud, data='binary', viewpoint=(0, 0, 0, 1, 0, 0, 0)):
+def pcd_bytes(cloud: np.ndarray, data: str = 'binary',
+              viewpoint: Sequence[float] = (0, 0, 0, 1, 0, 0, 0)) -> bytes:
     """Return the PCD file contents of structured array ``cloud`` (``data`` as PCD DATA)."""
     cloud = np.ascontiguousarray(cloud)
+    names = cloud.dtype.names
+    if names is None:
+        raise ValueError(f'a PCD file holds a structured array (named fields), not {cloud.dtype}')
     le = cloud.astype(cloud.dtype.newbyteorder('<'))
     header = _header_text(cloud, data, viewpoint).encode('ascii')
     if data == 'binary':
@@ -244,7 +249,7 @@ def pcd_bytes(cloud, data='binary', viewpoint=(0, 0, 0, 1, 0, 0, 0)):
         return header + np.array([len(comp), len(raw)], dtype='<u4').tobytes() + comp
     if data == 'ascii':
         columns, formats = [], []
-        for name in cloud.dtype.names:
+        for name in names:
             values = np.asarray(cloud[name]).reshape(len(cloud), -1)
             fmt = '%.9g' if values.dtype.kind == 'f' and values.dtype.itemsize == 4 else (
                 '%.17g' if values.dtype.kind == 'f' else '%d')
@@ -265,6 +270,7 @@ def _packed(cloud):
     return packed
 
 
-def write_pcd(path, cloud, data='binary', viewpoint=(0, 0, 0, 1, 0, 0, 0)):
+def write_pcd(path: PathLike, cloud: np.ndarray, data: str = 'binary',
+              viewpoint: Sequence[float] = (0, 0, 0, 1, 0, 0, 0)) -> None:
     """Write structured array ``cloud`` to ``path`` atomically (``data``: PCD DATA kind)."""
     write_bytes_atomic(path, pcd_bytes(cloud, data, viewpoint))

@@ -7,8 +7,9 @@ in m plus e.g. ``intensity``, ``ring``, ``time``). Other elements after it are i
 Errors name the file and the header line or byte offset; writes are atomic.
 """
 import os
+from typing import List, Tuple
 
-from accelcal_ros.errors import FileFormatError
+from accelcal_ros.errors import FileFormatError, PathLike
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.lidar.header import header_lines, read_file_bytes
 import numpy as np
@@ -21,14 +22,14 @@ _WRITE_NAMES = {'i1': 'char', 'u1': 'uchar', 'i2': 'short', 'u2': 'ushort', 'i4'
                 'u4': 'uint', 'f4': 'float', 'f8': 'double'}
 
 
-def read_ply(path):
+def read_ply(path: PathLike) -> np.ndarray:
     """Return the ``vertex`` element of a PLY file as a structured array."""
     path = os.fspath(path)
     raw = read_file_bytes(path)
     if not raw.startswith(b'ply'):
         raise FileFormatError(path, 'not a PLY file (first line is not "ply")', 1)
     fmt = None
-    elements = []
+    elements: List[Tuple[str, int, List[Tuple[str, str]]]] = []
     for line_no, text, offset in header_lines(
             path, raw, 'header has no end_header line (truncated file?)'):
         parts = text.split()
@@ -46,7 +47,7 @@ def read_ply(path):
                 count = -1
             if count < 0:
                 raise FileFormatError(path, f'bad element count in {text!r}', line_no)
-            elements.append([parts[1], count, []])
+            elements.append((parts[1], count, []))
         elif parts[0] == 'property' and elements:
             _add_property(path, elements[-1][2], parts, text, line_no)
         elif parts[0] == 'end_header':
@@ -70,7 +71,7 @@ def read_ply(path):
                                   f'bytes after byte offset {offset}')
         return np.frombuffer(raw, dtype=dtype, count=count, offset=offset).copy()
     lines = raw[offset:].decode('ascii', errors='replace').splitlines()
-    rows = []
+    rows: List[List[float]] = []
     number = line_no
     for line in lines:
         if len(rows) == count:
@@ -112,10 +113,13 @@ def _add_property(path, props, parts, text, line_no):
     props.append((parts[2], _PLY_TYPES[parts[1]]))
 
 
-def ply_bytes(cloud, binary=True):
+def ply_bytes(cloud: np.ndarray, binary: bool = True) -> bytes:
     """Return PLY file contents (vertex element only) for a structured array."""
+    names = cloud.dtype.names
+    if names is None:
+        raise ValueError(f'a PLY file holds a structured array (named fields), not {cloud.dtype}')
     props = []
-    for name in cloud.dtype.names:
+    for name in names:
         base = cloud.dtype[name]
         code = base.str[1:]
         if base.shape or code not in _WRITE_NAMES:
@@ -125,13 +129,13 @@ def ply_bytes(cloud, binary=True):
     header = (f'ply\nformat {fmt} 1.0\ncomment written by accelcal_ros\n'
               f'element vertex {len(cloud)}\n' + '\n'.join(props) + '\nend_header\n')
     if binary:
-        le = np.dtype([(n, cloud.dtype[n].newbyteorder('<')) for n in cloud.dtype.names])
+        le = np.dtype([(n, cloud.dtype[n].newbyteorder('<')) for n in names])
         packed = np.zeros(len(cloud), dtype=le)
-        for n in cloud.dtype.names:
+        for n in names:
             packed[n] = cloud[n]
         return header.encode('ascii') + packed.tobytes()
     columns, formats = [], []
-    for name in cloud.dtype.names:
+    for name in names:
         values = cloud[name]
         formats.append('%.17g' if values.dtype.itemsize == 8 and values.dtype.kind == 'f'
                        else ('%.9g' if values.dtype.kind == 'f' else '%d'))
@@ -141,6 +145,6 @@ def ply_bytes(cloud, binary=True):
     return (header + body + ('\n' if len(cloud) else '')).encode('ascii')
 
 
-def write_ply(path, cloud, binary=True):
+def write_ply(path: PathLike, cloud: np.ndarray, binary: bool = True) -> None:
     """Write structured array ``cloud`` to ``path`` atomically as PLY."""
     write_bytes_atomic(path, ply_bytes(cloud, binary))
