@@ -24,6 +24,7 @@ from accelcal_ros.calibration.ellipsoid_fit import fit_ellipsoid, parameter_coun
 from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.frames import (paper_roll_pitch, roll_pitch_from_specific_force,
                                  specific_force_from_roll_pitch)
+from accelcal_ros.recording.progress import Progress
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g, FULL_RES_G_PER_LSB
 from accelcal_ros.sensor.model import paper_a_model, SensorModel
 import numpy as np
@@ -71,6 +72,7 @@ def _fit_trials(truth, positions, samples, count, seed, layout, model, retries=1
     rng = np.random.default_rng(seed)
     models, predicted, refused, elapsed = [], [], 0, 0.0
     minimum = parameter_count(model)
+    progress = Progress(count, f'fitting {count} simulated calibrations')
     while len(models) < count:
         directions = layout_directions(layout, positions, rng)
         means, stds = simulate_position_means(truth, directions, samples, rng)
@@ -87,6 +89,8 @@ def _fit_trials(truth, positions, samples, count, seed, layout, model, retries=1
             elapsed += time.perf_counter() - start
         models.append(fit.sensor_model)
         predicted.append(fit.predicted_tilt_error_deg)
+        progress.update()
+    progress.clear()   # erased: the caller prints the row
     return models, refused, elapsed / max(len(models) + refused, 1), predicted
 
 

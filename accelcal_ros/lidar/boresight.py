@@ -44,6 +44,7 @@ from accelcal_ros.lidar.wahba import (_unit, check_constrained,  # noqa: F401
                                       pair_errors_deg, rotation_angle_deg,
                                       rotation_covariance, rpy_std_deg, solve_wahba,
                                       UnconstrainedBoresightError)
+from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 from numpy.typing import ArrayLike
@@ -150,7 +151,8 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
         if len(valid) < 2:
             raise CalibrationError(_too_few(valid, dropped))
         check_constrained([p.gravity_m_s2 for p, _ in valid], [p.name for p, _ in valid])
-        cands = [PlaneSet.from_planes(find_planes(pts, search)) for _, pts in valid]
+        cands = [PlaneSet.from_planes(find_planes(pts, search))
+                 for _, pts in track(valid, 'boresight: planes per position')]
         prior, choice, floor_notes = select_floor(cands, [p.gravity_m_s2 for p, _ in valid],
                                                   tolerance_deg, height_margin_m,
                                                   max_tilt_deg=search.max_tilt_deg)
@@ -166,7 +168,7 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
     gravity_list: List[np.ndarray] = []
     variances: List[float] = []
     inliers: List[int] = []
-    for pos, pts in valid:
+    for pos, pts in track(valid, 'boresight: floor per position'):
         f = _unit(np.asarray(pos.gravity_m_s2, dtype=float))
         up = prior.T @ f
         try:

@@ -51,6 +51,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
 from accelcal_ros.p2p.solver import down_from_roll_pitch, solve_batch, yaw_from_rotation
+from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.model import (paper_a_model, PAPER_K100_BIAS, PAPER_K100_SCALE,
                                        PAPER_K300_BIAS, PAPER_K300_SCALE, SensorModel)
 import numpy as np
@@ -214,7 +215,7 @@ def run_study(trials: int = 10000, seed: int = 0, geometry: 'StudyGeometry' = St
     models['K=100 pitch only'] = TiltOffset(0.0, PAPER_LEVEL_PITCH_ERROR_DEG['K=100'])
     if own_models:
         models['K=12 (package)'] = list(own_models)
-    for label, model in models.items():
+    for label, model in track(list(models.items()), f'p2p study ({trials} trials per row)'):
         rows[label] = run_trials(scenes, model, geometry, np.random.default_rng([seed, 1]))
     return {'geometry': asdict(geometry), 'trials': trials, 'seed': seed, 'rows': rows}
 
@@ -225,7 +226,7 @@ def elevation_sweep(elevations_deg: Sequence[float] = (5.0, 10.0, 20.0, 30.0, 45
     """Return ``{elevation: {label: stats}}``: the geometry dependence of the errors."""
     out = {}
     models = paper_models()
-    for elevation in elevations_deg:
+    for elevation in track(elevations_deg, 'p2p elevation sweep'):
         g = StudyGeometry(**dict(asdict(geometry), elevation_deg=float(elevation)))
         scenes = random_scenes(trials, np.random.default_rng(seed), g)
         out[float(elevation)] = {label: run_trials(scenes, models[label], g,

@@ -23,7 +23,6 @@ from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagMessage, BagReader
-from accelcal_ros.recording.progress import Progress
 from accelcal_ros.recording.streams import message_time_s
 import numpy as np
 from numpy.typing import ArrayLike
@@ -118,8 +117,7 @@ def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Opti
     t_att, roll, pitch = (np.asarray(a, dtype=float) for a in attitude)
     latest: List[Optional[Tuple[float, BagMessage]]] = [None] * len(names)
     counts = StitchCounts()
-    frames = Progress(0, 'stitching')
-    for message in bag.messages(names, 'reading images'):
+    for message in bag.messages(names, 'stitching'):   # the bar: images read of all
         i = index[message.topic]
         counts.images += 1
         latest[i] = (message_time_s(message, bag.stamp), message)
@@ -148,7 +146,5 @@ def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Opti
                               float(np.interp(stamp, t_att, pitch)))
         sink.write(stitcher.render())
         counts.frames += 1
-        frames.update()
         latest = [None] * len(names)
-    frames.close()
     return counts

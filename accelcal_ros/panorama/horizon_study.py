@@ -31,6 +31,7 @@ from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.rig import Rig, ring_rig
+from accelcal_ros.recording.progress import track
 import numpy as np
 
 PAPER_PITCH_DEG = -15.0
@@ -124,7 +125,7 @@ def run(width: int = 3600, height: int = 2400, count: int = 100, quick: bool = F
         'columns_seen': int(ok.sum()), 'rows': rows_by_error}
     images = {'true': truth_pano}
     say('  pitch error (paper sign) | max horizon deviation: rendered | closed form | paper')
-    for paper_error_deg in (-2.0, 2.0):
+    for paper_error_deg in track((-2.0, 2.0), 'horizon study: stitching'):
         used = (0.0, REFERENCE_PITCH_RAD - math.radians(paper_error_deg))
         pano = stitcher.stitch(views, *used)
         expected = analytic_horizon_rows(geometry, true_att, used)

@@ -2,13 +2,17 @@
 A progress bar on stderr when stderr is a terminal; silent otherwise (pipes, logs, CI).
 
 ``Progress(total, label)`` counts units (messages, bytes, frames); ``update(n)`` redraws
-at most every ``min_interval_s``; ``close()`` ends the line. ``ACCELCAL_PROGRESS=0`` turns
-it off and ``=1`` forces it on (for tests of the drawing).
+at most every ``min_interval_s``; ``close()`` ends the line. ``track(items, label)`` wraps
+a loop: ``for item in track(items, 'trials'):`` counts one unit per item; ``clear()``
+erases a drawn bar. ``ACCELCAL_PROGRESS=0`` turns it off and ``=1`` forces it on (for
+tests of the drawing).
 """
 import os
 import sys
 import time
-from typing import Optional, TextIO
+from typing import Iterable, Iterator, Optional, TextIO, TypeVar
+
+Item = TypeVar('Item')
 
 
 def progress_enabled(stream: Optional[TextIO] = None) -> bool:
@@ -64,6 +68,14 @@ class Progress:
         self.stream.flush()
         self._drawn = True
 
+    def clear(self) -> None:
+        """Erase the drawn bar (before other output); the next update redraws it."""
+        if self.enabled and self._drawn:
+            self.stream.write('\r\x1b[K')
+            self.stream.flush()
+            self._drawn = False
+            self._last = 0.0
+
     def close(self) -> None:
         """Draw the final state and end the line (nothing when disabled)."""
         if self.enabled:
@@ -79,3 +91,44 @@ class Progress:
         """End the line."""
         self.close()
         return False
+
+
+def track(items: Iterable[Item], label: str, total: Optional[int] = None,
+          stream: Optional[TextIO] = None) -> Iterator[Item]:
+    """
+    Yield ``items``, drawing a :class:`Progress` bar of one unit per item.
+
+    ``total`` defaults to ``len(items)`` when it has one (0, a count without a bar,
+    otherwise). The line is ended when the loop ends, also on break or an exception.
+    """
+    if total is None:
+        total = len(items) if hasattr(items, '__len__') else 0  # type: ignore[arg-type]
+    progress = Progress(total, label, stream)
+    saved = sys.stdout
+    if progress.enabled:   # lines printed by the loop erase the bar first
+        sys.stdout = _ClearingStream(saved, progress)  # type: ignore[assignment]
+    try:
+        for item in items:
+            yield item
+            progress.update()
+    finally:
+        sys.stdout = saved
+        progress.close()
+
+
+class _ClearingStream:
+    """Standard output that erases a drawn progress bar before it writes."""
+
+    def __init__(self, stream: TextIO, progress: Progress) -> None:
+        self._stream = stream
+        self._progress = progress
+
+    def write(self, text: str) -> int:
+        """Erase the bar, then write."""
+        if text:
+            self._progress.clear()
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str) -> object:
+        """Everything else is the wrapped stream's."""
+        return getattr(self._stream, name)

@@ -166,8 +166,8 @@ def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
         header[i].append(message.header_ns * 1e-9)
         receive[i].append(message.receive_ns * 1e-9)
         latest[i] = (t, message)
-        for k in np.nonzero(~np.array(done) & (stops < t - FINISH_AFTER_S))[0]:
-            finish(int(k))
+        for passed in np.nonzero(~np.array(done) & (stops < t - FINISH_AFTER_S))[0].tolist():
+            finish(passed)
         if any(item is None for item in latest):
             continue
         stamps = [item[0] for item in latest if item is not None]

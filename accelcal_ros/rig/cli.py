@@ -1,8 +1,14 @@
 """Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``."""
 import argparse
 import os
+from typing import Optional, TYPE_CHECKING
 
 from accelcal_ros.cli_args import float_in, int_in, nonnegative_int
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.rig.board import Board
+    from accelcal_ros.rig.calibrate import RigCalibration
+    from accelcal_ros.sensor.model import SensorModel
 
 
 def register(subparsers: argparse._SubParsersAction,
@@ -65,7 +71,8 @@ def _add_bag_arguments(p: argparse.ArgumentParser) -> None:
     add_stamp_argument(p)
 
 
-def _calibrate_bag(args: argparse.Namespace, board: object, model: object) -> object:
+def _calibrate_bag(args: argparse.Namespace, board: 'Board',
+                   model: 'Optional[SensorModel]') -> 'RigCalibration':
     """Extract the still poses of a bag into a capture directory and calibrate it."""
     import tempfile
 

@@ -9,6 +9,7 @@ import os
 import tempfile
 from typing import List, Sequence
 
+from accelcal_ros.recording.progress import track
 from accelcal_ros.rig.calibrate import calibrate_directory, RigCalibration
 from accelcal_ros.rig.extrinsics import rotation_angle_deg
 from accelcal_ros.rig.render import (default_truth, plan_poses, Renderer, RigTruth,
@@ -38,7 +39,7 @@ def run_study(pose_counts: Sequence[int], seed: int = 1) -> List[str]:
     with tempfile.TemporaryDirectory() as tmp:
         write_dataset(tmp, truth, poses, renderer, seed=seed)
         names = sorted(os.listdir(tmp))
-        for count in pose_counts:
+        for count in track(pose_counts, 'rig study'):
             sub = os.path.join(tmp, f'first{count}')
             os.makedirs(sub)
             for name in names[:count]:
