@@ -30,9 +30,14 @@ import os
 import re
 import stat
 import threading
+from typing import (Any, Callable, Dict, IO, Iterable, Iterator, List, Optional, Sequence,
+                    TYPE_CHECKING)
 
-from accelcal_ros.errors import FileFormatError, FileWriteError, InputError
+from accelcal_ros.errors import FileFormatError, FileWriteError, InputError, PathLike
 import yaml
+
+if TYPE_CHECKING:  # numpy is imported where a CSV is read (keeps this module light)
+    import numpy as np
 
 TEMP_SUFFIX = '.accelcal-tmp'
 _TEMP_PATTERN = re.compile(r'^\.(?P<name>.+)\.(?P<pid>\d+)-\d+' + re.escape(TEMP_SUFFIX) + '$')
@@ -60,7 +65,7 @@ def _record_input(path):
         inputs[os.path.realpath(path)] = (path, ident)
 
 
-def read_input_bytes(path, what='file'):
+def read_input_bytes(path: PathLike, what: str = 'file') -> bytes:
     """
     Return the whole content of ``path`` (bytes); FileFormatError if it cannot be read.
 
@@ -85,7 +90,7 @@ def read_input_bytes(path, what='file'):
     return data
 
 
-def decode_text(path, data, what='file'):
+def decode_text(path: PathLike, data: bytes, what: str = 'file') -> str:
     """Decode ``data`` as UTF-8 (BOM allowed); FileFormatError with the line of a bad byte."""
     try:
         return data.decode('utf-8-sig')
@@ -95,13 +100,13 @@ def decode_text(path, data, what='file'):
                               f'at offset {exc.start}); is this the right file?', line) from None
 
 
-def read_input_text(path, what='file'):
+def read_input_text(path: PathLike, what: str = 'file') -> str:
     """Return the content of ``path`` as text (UTF-8); see :func:`read_input_bytes`."""
     path = os.fspath(path)
     return decode_text(path, read_input_bytes(path, what), what)
 
 
-def load_yaml_mapping(path, what='file'):
+def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
     """Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise."""
     path = os.fspath(path)
     text = read_input_text(path, what)
@@ -147,7 +152,7 @@ def _expanded_size_exceeds(data, limit):
     return False
 
 
-def dump_yaml(data):
+def dump_yaml(data: Any) -> str:
     """YAML text with keys in insertion order and lists of numbers in flow style."""
     class _Dumper(yaml.SafeDumper):
         pass
@@ -160,7 +165,9 @@ def dump_yaml(data):
     return yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False)
 
 
-def read_numeric_csv(path, required, optional=(), finite=False, increasing=None):
+def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence[str] = (),
+                     finite: bool = False,
+                     increasing: Optional[str] = None) -> Dict[str, 'np.ndarray']:
     """
     Read a CSV with a header into a dict of float arrays; errors name file and line.
 
@@ -178,9 +185,9 @@ def read_numeric_csv(path, required, optional=(), finite=False, increasing=None)
         rows = _numeric_rows(path, reader, required, optional, finite, increasing)
     except csv.Error as exc:
         raise FileFormatError(path, f'malformed CSV ({exc})', reader.line_num or 1) from None
-    data, wanted = rows
-    data = np.array(data, dtype=float).reshape(-1, len(wanted))
-    return {name: data[:, k] for k, name in enumerate(wanted)}
+    values, wanted = rows
+    table = np.array(values, dtype=float).reshape(-1, len(wanted))
+    return {name: table[:, k] for k, name in enumerate(wanted)}
 
 
 def _numeric_rows(path, reader, required, optional, finite, increasing):
@@ -226,7 +233,7 @@ def _numeric_rows(path, reader, required, optional, finite, increasing):
 
 
 @contextlib.contextmanager
-def guard_inputs(paths=()):
+def guard_inputs(paths: Iterable[Optional[PathLike]] = ()) -> Iterator[None]:
     """
     Within the block, refuse to write over any input: ``paths`` and every file read here.
 
@@ -245,7 +252,7 @@ def guard_inputs(paths=()):
         _guard.inputs = previous
 
 
-def refuse_overwriting_inputs(output, inputs):
+def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLike]]) -> None:
     """Raise InputError when ``output`` is one of ``inputs`` (same resolved path or inode)."""
     output = os.fspath(output)
     out_real = os.path.realpath(output)
@@ -296,11 +303,11 @@ def _pid_alive(pid):
     return True
 
 
-def remove_stale_temp_files(path):
+def remove_stale_temp_files(path: PathLike) -> List[str]:
     """Remove temporary files of ``path`` left by writers that no longer run; return them."""
     directory = os.path.dirname(os.path.abspath(path))
     name = os.path.basename(path)
-    removed = []
+    removed: List[str] = []
     try:
         entries = os.listdir(directory)
     except OSError:
@@ -339,7 +346,7 @@ def _write_file(target, data, mode):
     return tmp
 
 
-def write_bytes_atomic(path, data, backup=False):
+def write_bytes_atomic(path: PathLike, data: bytes, backup: bool = False) -> None:
     """
     Write ``data`` (bytes) to ``path`` atomically; keep the old file as ``path.bak``.
 
@@ -387,19 +394,25 @@ def write_bytes_atomic(path, data, backup=False):
                 os.unlink(tmp)
 
 
-def write_text_atomic(path, text, backup=False):
+def write_text_atomic(path: PathLike, text: str, backup: bool = False) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`write_bytes_atomic`)."""
     write_bytes_atomic(path, text.encode('utf-8'), backup=backup)
 
 
-def write_with_atomic(path, writer, backup=False, binary=False):
+def write_with_atomic(path: PathLike, writer: Callable[[IO[Any]], object], backup: bool = False,
+                      binary: bool = False) -> None:
     """
     Call ``writer(handle)`` on an in-memory buffer, then write it atomically.
 
     For writers that need a file object (numpy, csv, OpenCV encoders): nothing reaches
     ``path`` unless ``writer`` returns without raising.
     """
-    buffer = io.BytesIO() if binary else io.StringIO()
-    writer(buffer)
-    data = buffer.getvalue()
-    write_bytes_atomic(path, data if binary else data.encode('utf-8'), backup=backup)
+    if binary:
+        raw = io.BytesIO()
+        writer(raw)
+        data = raw.getvalue()
+    else:
+        text = io.StringIO()
+        writer(text)
+        data = text.getvalue().encode('utf-8')
+    write_bytes_atomic(path, data, backup=backup)
