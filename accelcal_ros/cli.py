@@ -18,6 +18,7 @@ import argparse
 import importlib
 import os
 import sys
+from typing import List, NoReturn, Optional, Sequence
 
 from accelcal_ros.errors import AccelcalError, InputError
 
@@ -65,13 +66,13 @@ def fit_package_calibrations(count: int, seed: int = 0) -> list:
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (status 2)."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         """Print ``accelcal: error: MESSAGE`` and where the usage is; exit with status 2."""
         self.exit(2, f'accelcal: error: {" ".join(message.split())} ({self.prog} --help '
                      'shows the usage)\n')
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     """Build the full argument parser with every feature's subcommands."""
     parser = _Parser(
         prog='accelcal',
@@ -95,7 +96,7 @@ def build_parser():
     return parser
 
 
-def input_paths(args):
+def input_paths(args: argparse.Namespace) -> List[str]:
     """Return the arguments of a parsed command that name existing files (not outputs)."""
     paths = []
     for dest, value in vars(args).items():
@@ -107,13 +108,13 @@ def input_paths(args):
     return paths
 
 
-def output_paths(args):
+def output_paths(args: argparse.Namespace) -> List[str]:
     """Return the output arguments of a parsed command that are set."""
     return [os.fspath(v) for dest, v in vars(args).items()
             if is_output_dest(dest) and isinstance(v, (str, os.PathLike)) and v]
 
 
-def run_command(args):
+def run_command(args: argparse.Namespace) -> int:
     """Run a parsed command: inputs guarded, outputs checked before any work."""
     from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
 
@@ -128,7 +129,7 @@ def run_command(args):
         return int(args.handler(args) or 0)
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``accelcal``; returns the exit status (errors: one line on stderr)."""
     try:
         parser = build_parser()
