@@ -8,7 +8,7 @@ Keeping the rules here lets tests check them without a ROS graph.
 """
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 _KINDS = ('bool', 'int', 'double', 'string', 'double_array', 'int_array', 'string_array')
 
@@ -37,14 +37,14 @@ class ParamSpec:
     read_only: bool = False
     unit: str = ''
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         """Infer ``kind`` from the default when not given."""
         if not self.kind:
             object.__setattr__(self, 'kind', infer_kind(self.default))
         if self.kind not in _KINDS:
             raise ValueError(f'parameter {self.name}: unknown kind {self.kind!r}')
 
-    def constraints_text(self):
+    def constraints_text(self) -> str:
         """Human-readable constraints, shown in the descriptor's additional_constraints."""
         parts = []
         if self.unit:
@@ -59,7 +59,7 @@ class ParamSpec:
             parts.append('length ' + ' or '.join(str(n) for n in self.lengths))
         return '; '.join(parts)
 
-    def coerce(self, value):
+    def coerce(self, value: Any) -> Any:
         """Value converted to the spec's kind (ints accepted for doubles); TypeError if not."""
         kind = self.kind
         if kind == 'double':
@@ -84,7 +84,7 @@ class ParamSpec:
         element = ParamSpec(self.name, None, '', kind=kind.split('_')[0])
         return [element.coerce(v) for v in items]
 
-    def check(self, value):
+    def check(self, value: Any) -> Tuple[Any, Optional[str]]:
         """Return ``(coerced_value, None)`` or ``(None, reason)`` for a proposed value."""
         try:
             coerced = self.coerce(value)
@@ -112,7 +112,7 @@ class ParamSpec:
         return coerced, None
 
 
-def infer_kind(default):
+def infer_kind(default: Any) -> str:
     """Parameter kind from a default value (empty lists need an explicit kind)."""
     if isinstance(default, bool):
         return 'bool'
@@ -127,10 +127,12 @@ def infer_kind(default):
     raise ValueError(f'cannot infer a parameter kind from {default!r}; give kind=')
 
 
-def check_all(specs, values):
+def check_all(specs: Iterable[ParamSpec], values: Mapping[str, Any]
+              ) -> Tuple[Dict[str, Any], List[str]]:
     """Validate a ``{name: value}`` mapping; returns ``(coerced_dict, list_of_reasons)``."""
     by_name = {s.name: s for s in specs}
-    out, reasons = {}, []
+    out: Dict[str, Any] = {}
+    reasons: List[str] = []
     for name, value in values.items():
         spec = by_name.get(name)
         if spec is None:
