@@ -90,7 +90,7 @@ def _fit_trials(truth, positions, samples, count, seed, layout, model, retries=1
         models.append(fit.sensor_model)
         predicted.append(fit.predicted_tilt_error_deg)
         progress.update()
-    progress.clear()   # erased: the caller prints the row
+    progress.close(erase=True)   # the caller prints the row
     return models, refused, elapsed / max(len(models) + refused, 1), predicted
 
 

@@ -10,6 +10,7 @@ tests of the drawing).
 import os
 import sys
 import time
+import weakref
 from typing import Iterable, Iterator, Optional, TextIO, TypeVar
 
 Item = TypeVar('Item')
@@ -27,8 +28,17 @@ def progress_enabled(stream: Optional[TextIO] = None) -> bool:
         return False
 
 
+_OPEN_BARS: 'weakref.WeakSet[Progress]' = weakref.WeakSet()
+"""Bars drawn and not closed (nor dropped) yet: one opened meanwhile stays silent."""
+
+
 class Progress:
-    """Count ``total`` units (0: unknown) and draw ``label [####....] 42% n/total`` lines."""
+    """
+    Count ``total`` units (0: unknown) and draw ``label [####....] 42% n/total`` lines.
+
+    Only the outermost open bar is drawn: one opened while another is open (a boresight
+    inside a study's trial loop) counts silently.
+    """
 
     def __init__(self, total: int, label: str, stream: Optional[TextIO] = None,
                  min_interval_s: float = 0.2, width: int = 30):
@@ -36,7 +46,9 @@ class Progress:
         self.label = label
         self.count = 0
         self.stream = sys.stderr if stream is None else stream
-        self.enabled = progress_enabled(self.stream)
+        self.enabled = progress_enabled(self.stream) and not _OPEN_BARS
+        if self.enabled:
+            _OPEN_BARS.add(self)
         self.min_interval_s = min_interval_s
         self.width = width
         self._start = time.monotonic()
@@ -76,12 +88,17 @@ class Progress:
             self._drawn = False
             self._last = 0.0
 
-    def close(self) -> None:
-        """Draw the final state and end the line (nothing when disabled)."""
+    def close(self, erase: bool = False) -> None:
+        """Draw the final state and end the line, or erase the bar (nothing when disabled)."""
         if self.enabled:
-            self._draw(time.monotonic())
-            self.stream.write('\n')
-            self.stream.flush()
+            if erase:
+                self.clear()
+            else:
+                self._draw(time.monotonic())
+                self.stream.write('\n')
+                self.stream.flush()
+            self.enabled = False
+            _OPEN_BARS.discard(self)
 
     def __enter__(self):
         """Use as a context manager: ``close()`` on exit."""

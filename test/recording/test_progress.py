@@ -53,3 +53,18 @@ def test_clear_erases_only_a_drawn_bar(monkeypatch):
     bar.update()
     bar.clear()
     assert stream.getvalue().endswith('\r\x1b[K')
+    bar.close()
+
+
+def test_only_the_outermost_bar_is_drawn(monkeypatch):
+    """A bar opened inside another's loop counts silently; after both close, bars draw again."""
+    monkeypatch.setenv('ACCELCAL_PROGRESS', '1')
+    outer, inner = io.StringIO(), io.StringIO()
+    for _ in track(range(2), 'study', stream=outer):
+        for _ in track(range(3), 'positions', stream=inner):
+            pass
+    assert 'study [' in outer.getvalue() and inner.getvalue() == ''
+    bar = Progress(1, 'again', stream=inner)
+    assert bar.enabled
+    bar.close(erase=True)
+    assert not bar.enabled
