@@ -5,6 +5,7 @@ The session settings' defaults are those of :class:`CalibratorConfig` (one sourc
 :data:`CONFIG_FIELDS` names the config field of each such parameter.
 """
 import os
+from typing import Any, Mapping
 
 from accelcal_ros.calibration.session import CalibratorConfig
 from accelcal_ros.paramspec import ParamSpec
@@ -71,6 +72,6 @@ CALIBRATION_PARAMS = (
 )
 
 
-def calibrator_config(values):
+def calibrator_config(values: Mapping[str, Any]) -> CalibratorConfig:
     """Return the :class:`CalibratorConfig` of validated parameter ``values``."""
     return CalibratorConfig(**{field: values[name] for name, field in CONFIG_FIELDS.items()})

@@ -1,10 +1,15 @@
 """Parameters of the ``imu_driver`` node (pure: specifications and source construction)."""
+from typing import Any, Mapping, TYPE_CHECKING, Union
+
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.driver.sim_sensor import poses_from_flat_list, SimulatedAdxl345
 from accelcal_ros.errors import InputError
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.sensor.datasheet import OUTPUT_DATA_RATES_HZ, RANGES_G
 from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
+
+if TYPE_CHECKING:  # the sources are imported when one is built
+    from accelcal_ros.driver.sources import I2cSource, ReplaySource, SimSource
 
 
 def _poses_reason(values):
@@ -65,7 +70,8 @@ DRIVER_PARAMS = (
 )
 
 
-def make_source(values):
+def make_source(values: Mapping[str, Any]
+                ) -> Union['SimSource', 'ReplaySource', 'I2cSource']:
     """Build the sample source for validated parameter ``values`` (may raise DeviceError)."""
     from accelcal_ros.driver.sources import I2cSource, ReplaySource, SimSource
 
