@@ -10,8 +10,8 @@ tests of the drawing).
 import os
 import sys
 import time
-import weakref
 from typing import Iterable, Iterator, Optional, TextIO, TypeVar
+import weakref
 
 Item = TypeVar('Item')
 
