@@ -19,7 +19,9 @@ def register(subparsers: argparse._SubParsersAction,
         description='Calibrate a camera rig from DIR/poseNN/<camera>.png (a chessboard lying '
                     'on a floor or table, seen by one or more cameras) and DIR/poseNN/imu.csv '
                     '(t,ax,ay,az in s and m/s^2, rig still). Writes the rig file (the '
-                    "stitcher's format plus imu_to_camera), <stem>_report.yaml and <stem>.png.")
+                    "stitcher's format plus imu_to_camera), <stem>_report.yaml and <stem>.png. "
+                    'A bag instead: the still periods of its IMU are the poses, each with the '
+                    'frame set of its image topics nearest the middle of the period.')
     p.add_argument('directory', metavar='DIR_OR_BAG',
                    help='capture directory, or a bag (rosbag2 directory, .mcap, .db3, ROS 1 '
                         '.bag) with the image topics and the IMU; still poses are found '
