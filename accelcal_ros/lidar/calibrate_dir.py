@@ -20,6 +20,7 @@ from accelcal_ros.lidar.cloud import read_cloud, xyz
 from accelcal_ros.lidar.imu_log import read_imu_csv
 from accelcal_ros.lidar.plane_fit import FloorSearch
 from accelcal_ros.lidar.static_segments import longest_static_segment
+from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 
@@ -59,7 +60,8 @@ def load_positions(directory: PathLike, model: Optional[SensorModel] = None,
     file is an error naming file and line (or, with ``skip_bad_files``, dropped with it).
     """
     positions, dropped = [], {}
-    for name, cloud_path, imu_path in list_positions(directory):
+    for name, cloud_path, imu_path in track(list_positions(directory),
+                                            'boresight: reading positions'):
         try:
             if not os.path.exists(imu_path):
                 raise InputError(f'{imu_path}: IMU log missing for {name}')
