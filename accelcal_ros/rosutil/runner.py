@@ -197,9 +197,12 @@ def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
 
     ``executor`` is the node's default (events, single or multi; ``$ACCELCAL_EXECUTOR``
     overrides it); when not given, ``threads=1`` means single and more threads multi (the
-    old interface). ``threads`` is the MultiThreadedExecutor's thread count.
+    old interface). ``threads`` is the MultiThreadedExecutor's thread count. A node logs;
+    it never draws the offline commands' progress bars (``ACCELCAL_PROGRESS=0`` unless set).
     """
     from rclpy.signals import SignalHandlerOptions
+
+    os.environ.setdefault('ACCELCAL_PROGRESS', '0')
 
     default = executor or ('single' if threads == 1 else 'multi')
     stop = _StopFlag()
