@@ -22,8 +22,9 @@ of each stage in one process (take/deserialise, convert, copy into the mosaic, r
 remap, build + publish), the node's path before (deserialised messages, arrays copied)
 and now (raw buffers, numpy views, serialized output). Short runs are indicative only:
 Run: ``python benchmarks/bench_panorama_graph.py [--duration 10] [--configs 5x1280x960@10
-5x640x480@25] [--stages] [--size 3600x2400]`` (``--size``: a fixed panorama size, as
-before issue 16; default: the node's, the cameras' resolution).
+5x640x480@25] [--stages] [--size 3600x2400] [--shm-mb 128]`` (``--size``: a fixed
+panorama size, as before issue 16; default: the node's, the cameras' resolution;
+``--shm-mb``: see :data:`FASTDDS_LARGE_SHM`, without it the transport is the limit).
 """
 import argparse
 import json
@@ -258,6 +259,50 @@ def result_of(proc, timeout):
     return {'error': (err or out).strip().splitlines()[-3:]}
 
 
+FASTDDS_LARGE_SHM = """<?xml version="1.0" encoding="UTF-8"?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+    <transport_descriptor>
+      <transport_id>shm_large</transport_id>
+      <type>SHM</type>
+      <segment_size>{segment_bytes}</segment_size>
+    </transport_descriptor>
+    <transport_descriptor>
+      <transport_id>udp</transport_id>
+      <type>UDPv4</type>
+    </transport_descriptor>
+  </transport_descriptors>
+  <participant profile_name="large_messages" is_default_profile="true">
+    <rtps>
+      <userTransports>
+        <transport_id>shm_large</transport_id>
+        <transport_id>udp</transport_id>
+      </userTransports>
+      <useBuiltinTransports>false</useBuiltinTransports>
+    </rtps>
+  </participant>
+</profiles>
+"""
+"""
+Fast DDS profile: a shared-memory segment large enough for camera frames and panoramas.
+
+Fast DDS's default segment (0.5 MB) does not hold a 0.9 MB 640x480 frame: such messages
+go over UDP loopback in 64 kB fragments, and at 100+ MB/s fragments are lost, so keep-last
+readers lose whole frames (complete sets drop from 25 to 11-14/s even for a bare
+subscriber). Every process of the graph must use it (``FASTRTPS_DEFAULT_PROFILES_FILE``).
+"""
+
+
+def use_fastdds_profile(segment_mb, workdir):
+    """Write :data:`FASTDDS_LARGE_SHM` and point this process and its children to it."""
+    path = os.path.join(workdir, 'fastdds_large_shm.xml')
+    with open(path, 'w') as handle:
+        handle.write(FASTDDS_LARGE_SHM.format(segment_bytes=int(segment_mb * 2 ** 20)))
+    os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = path
+    os.environ['FASTDDS_DEFAULT_PROFILES_FILE'] = path
+    return path
+
+
 def isolated_domain():
     """Give this run its own ROS domain (localhost only); returns the holder."""
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -301,7 +346,7 @@ def graph_config(config, duration, warmup, workdir, size=''):
     ``size`` ``'WxH'`` sets the panorama size; empty: the node's default (from the rig).
     """
     from graph_harness.graph import NodeProcess
-    from accelcal_ros.panorama.rig import ring_rig, save_rig
+    from accelcal_ros.camera.rig import ring_rig, save_rig
 
     count, size = config.split('x', 1)
     size, rate = size.split('@')
@@ -362,9 +407,9 @@ def report(config, results, target_fps=None, ratio=0.9, what='panoramas'):
 def stages(config, repeats, size_option=''):
     """Print each stage's cost per frame set, the node's path before and now."""
     import cv2
+    from accelcal_ros.camera.rig import ring_rig
     from accelcal_ros.panorama.params import panorama_size_from_focal, reference_focal_px
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import ring_rig
     from accelcal_ros.panorama.stitch import Stitcher
     from accelcal_ros.rosutil.images import array_to_image_msg, image_cdr, image_from_cdr
     from rclpy.serialization import deserialize_message, serialize_message
@@ -433,6 +478,9 @@ def main():
     parser.add_argument('--size', default='', help='panorama WIDTHxHEIGHT (e.g. 3600x2400, '
                         'the fixed size before issue 16); default: that of the node, from the rig')
     parser.add_argument('--repeats', type=int, default=10, help='sets for --stages')
+    parser.add_argument('--shm-mb', type=float, default=0.0,
+                        help='run every process with a Fast DDS shared-memory segment of '
+                        'this size (MB; e.g. 128); 0: the middleware default (0.5 MB)')
     parser.add_argument('--topics', default='')
     parser.add_argument('--width', type=int, default=1280)
     parser.add_argument('--height', type=int, default=960)
@@ -463,6 +511,9 @@ def main():
           f'{args.size or "the default (from the rig)"}; load average '
           f'{" ".join(f"{x:.2f}" for x in os.getloadavg())}; indicative on a loaded machine')
     with tempfile.TemporaryDirectory() as workdir:
+        if args.shm_mb:
+            print(f'Fast DDS profile {use_fastdds_profile(args.shm_mb, workdir)}: shared '
+                  f'memory segment {args.shm_mb:g} MB')
         for config in args.configs:
             results = graph_config(config, args.duration, args.warmup, workdir, args.size)
             fps = float(config.split('@')[1]) if config.startswith('5x640x480') else None
