@@ -32,16 +32,16 @@ resets the policy, with a log line and the count in ``/diagnostics``.
 overrides it.
 """
 import math
+import os
 import time
 
-from accelcal_ros.camera.rig import resolve_imu_to_camera
+from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import load_rig
 from accelcal_ros.rosutil.images import image_array, image_cdr, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -57,6 +57,8 @@ from sensor_msgs.msg import CompressedImage, Image
 
 # Inputs that go into the mosaic as they are (the stitcher converts grey <-> BGR while
 # copying); any other encoding is converted to the output encoding first.
+FASTDDS_DEFAULT_SHM_MB = 0.5
+"""Fast DDS's default shared-memory segment (MB): larger messages go over UDP."""
 _AS_IS = {'bgr8': ('bgr8', 'mono8'), 'mono8': ('mono8', 'bgr8'), 'rgb8': ('rgb8', 'mono8')}
 
 
@@ -132,6 +134,25 @@ class StitcherNode(Node):
             f'{geometry.fov_v_deg:g} deg on "panorama" (images {v["image_reliability"]}, '
             f'depth {v["image_queue_depth"]}; size from {size_from}; imu_to_camera from '
             f'{source})')
+        self._transport_hint(geometry)
+
+    def _transport_hint(self, geometry):
+        """Say once when Fast DDS's default transport will lose frames of this size."""
+        from rclpy.utilities import get_rmw_implementation_identifier
+
+        if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp' or any(
+                os.environ.get(k) for k in ('FASTRTPS_DEFAULT_PROFILES_FILE',
+                                            'FASTDDS_DEFAULT_PROFILES_FILE')):
+            return
+        frame_mb = max(c.width * c.height * 3 for c in self.rig.cameras) / 2 ** 20
+        out_mb = geometry.width * geometry.height * 3 / 2 ** 20
+        if max(frame_mb, out_mb) > FASTDDS_DEFAULT_SHM_MB:
+            self.get_logger().info(
+                f'messages of {frame_mb:.1f} MB (frames) and {out_mb:.1f} MB (panorama) '
+                f'exceed the default shared-memory segment of Fast DDS ({FASTDDS_DEFAULT_SHM_MB} '
+                'MB): they go over UDP loopback, where frames are lost at camera rates; give '
+                'every process a profile with a larger segment (FASTRTPS_DEFAULT_PROFILES_FILE'
+                ', see docs/panorama.md "In a graph")')
 
     def _imu_to_camera(self, values):
         """
