@@ -13,12 +13,13 @@ import tempfile
 import time
 
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import calibrate_boresight, rotation_angle_deg
+from accelcal_ros.lidar.boresight import calibrate_boresight
 from accelcal_ros.lidar.cloud import point_times, xyz
 from accelcal_ros.lidar.georef import georeference
 from accelcal_ros.lidar.pcd import read_pcd, write_pcd
 from accelcal_ros.lidar.plane_fit import find_floor, FloorSearch, prepare_floor_candidates
 from accelcal_ros.lidar.poses import PoseStream
+from accelcal_ros.lidar.wahba import rotation_angle_deg
 import numpy as np
 from scipy.spatial.transform import Rotation
 

@@ -10,6 +10,7 @@ blur, noise; plumb_bob distortion for the undistortion step).
 import argparse
 import time
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.p2p import beacons, render, solver, study
 import numpy as np
 
@@ -53,8 +54,8 @@ def main():
           f'({len(scenes.rays) / batch_s * single_s / single_n:.0f}x single); max |t error| '
           f'{error:.1e} m at range 1 m')
 
-    camera = render.CameraModel.from_fov(1280, 960, 60.0,
-                                         dist_coeffs=[-0.12, 0.03, 0.0, 0.0, 0.0])
+    camera = CameraModel.from_fov(1280, 960, 60.0,
+                                  dist_coeffs=[-0.12, 0.03, 0.0, 0.0, 0.0])
     points = np.array([[0.0, -0.25, 0.0], [0.0, 0.25, 0.0]])
     rotation, translation = render.pose_from_camera_attitude(
         np.radians(3.0), np.radians(15.0), np.pi, [4.0, 0.0, 1.07])

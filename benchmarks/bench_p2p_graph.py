@@ -27,10 +27,11 @@ EMITTERS = [-0.4, 0.0, 0.0, 0.4, 0.0, 0.0]
 
 def scene(width, height):
     """Return the rendered image, K (9 values), roll and pitch (deg) of the test scene."""
+    from accelcal_ros.camera import CameraModel
     from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rpy_radians_from_rotation
     from accelcal_ros.p2p import render
 
-    camera = render.CameraModel.from_fov(width, height, 60.0)
+    camera = CameraModel.from_fov(width, height, 60.0)
     yaw = math.radians(150.0)
     rotation, translation = render.pose_from_camera_attitude(
         math.radians(4.0), math.radians(20.0), yaw,

@@ -17,7 +17,7 @@ import statistics
 import time
 
 from accelcal_ros.panorama.horizon_study import REFERENCE_PITCH_RAD, study_rig
-from accelcal_ros.panorama.lookup import OUTSIDE
+from accelcal_ros.panorama.mosaic import OUTSIDE
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.stitch import Stitcher

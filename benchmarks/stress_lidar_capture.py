@@ -28,9 +28,10 @@ if 'ROS_DOMAIN_ID' not in os.environ:
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from accelcal_ros.lidar import scanner_sim as sim  # noqa: E402, I100 (after the domain is chosen)
-from accelcal_ros.lidar.boresight import load_boresight, rotation_angle_deg  # noqa: E402
+from accelcal_ros.lidar.boresight import load_boresight  # noqa: E402
 from accelcal_ros.lidar.scanner_sim_ros import (  # noqa: E402
     drive_static_positions, PACKETS_PER_REVOLUTION)
+from accelcal_ros.lidar.wahba import rotation_angle_deg  # noqa: E402
 from graph_harness.graph import Graph  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 import yaml  # noqa: E402

@@ -194,7 +194,7 @@ READERS = {
         'accelcal_ros.sensor.calibration_file:load_calibration',
         'accelcal_ros.calibration.calibration_file:load_calibration')(p)),
     'rig_yaml': ('rig.yaml', _write_rig,
-                 lambda p: _function('accelcal_ros.panorama.rig:load_rig')(p)),
+                 lambda p: _function('accelcal_ros.camera.rig:load_rig')(p)),
     'camera_info_yaml': ('cam.yaml', _write_camera_info, _read_camera_info),
     'boresight_yaml': ('bs.yaml', _write_boresight,
                        lambda p: _function('accelcal_ros.lidar.boresight:load_boresight')(p)),

@@ -108,7 +108,8 @@ def _add_bag_arguments(p):
 
 def _read_recording_of(args):
     """Return (t, accel in g) of a CSV recording or of a bag's Imu topic."""
-    from accelcal_ros.recording.cli_support import is_bag, open_bag, warn
+    from accelcal_ros.recording.bag import is_bag
+    from accelcal_ros.recording.cli_support import open_bag, warn
 
     if not is_bag(args.recording):
         if args.topic:
@@ -126,7 +127,8 @@ def _read_recording_of(args):
 
 
 def _writes_bag(args):
-    from accelcal_ros.recording.cli_support import is_bag, is_bag_output
+    from accelcal_ros.recording.bag import is_bag
+    from accelcal_ros.recording.cli_support import is_bag_output
 
     return is_bag(args.recording) and is_bag_output(args.output)
 

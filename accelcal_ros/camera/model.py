@@ -319,5 +319,4 @@ def camera_model_from_mapping(entry: Mapping, where: str = 'camera') -> CameraMo
     return CameraModel(width, height, k, d, model)
 
 
-__all__ = ['CAMERA_KEYS', 'CameraModel', 'camera_model_from_mapping', 'DISTORTION_MODELS',
-           'EQUIDISTANT', 'PLUMB_BOB', 'RATIONAL_POLYNOMIAL', 'ROS_CALIBRATION_KEYS']
+__all__ = ['CAMERA_KEYS', 'CameraModel', 'camera_model_from_mapping', 'ROS_CALIBRATION_KEYS']

@@ -31,10 +31,10 @@ def run(ctx):
     """Run the stage (see the module docstring)."""
     from accelcal_ros.fileio import dump_yaml, write_text_atomic
     from accelcal_ros.frames import rpy_radians_from_rotation
-    from accelcal_ros.lidar.boresight import rotation_angle_deg
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)
     from accelcal_ros.lidar.cloud import write_cloud
+    from accelcal_ros.lidar.wahba import rotation_angle_deg
 
     say = ctx.say
     out = ctx.out_dir

@@ -11,6 +11,7 @@ If ``attitude`` is not installed, ``sim/attitude_truth`` is remapped to ``attitu
 """
 import time
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.p2p import render
 from accelcal_ros.p2p.solver import yaw_from_rotation
 from accelcal_ros.rosutil.images import array_to_image_msg
@@ -43,8 +44,8 @@ def truth_at(azimuth_deg):
 def run(ctx):
     """Run imu_driver + attitude + p2p; publish rendered frames; print poses against truth."""
     graph = ctx.graph
-    camera = render.CameraModel.from_fov(1280, 960, 60.0,
-                                         dist_coeffs=[-0.12, 0.03, 0.0, 0.0, 0.0])
+    camera = CameraModel.from_fov(1280, 960, 60.0,
+                                  dist_coeffs=[-0.12, 0.03, 0.0, 0.0, 0.0])
     try:
         executable('attitude')
         have_attitude = True

@@ -12,10 +12,10 @@ import math
 import os
 import time
 
+from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig, save_rig
 from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
 from accelcal_ros.rosutil.stamps import seconds_to_stamp, stamp_to_seconds
 from builtin_interfaces.msg import Time

@@ -35,15 +35,11 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 
 from accelcal_ros.errors import CalibrationError, GeometryError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list, rpy_radians_from_rotation
-from accelcal_ros.lidar.floor_assign import (AmbiguousFloorError, PlaneSet,  # noqa: F401
-                                             select_floor)
+from accelcal_ros.lidar.floor_assign import PlaneSet, select_floor
 from accelcal_ros.lidar.plane_fit import find_floor, find_planes, FloorSearch
-from accelcal_ros.lidar.wahba import (_unit, check_constrained,  # noqa: F401
-                                      constraint_eigen, holdout,
-                                      MIN_CONSTRAINT_EIGENVALUE, observability_warnings,
-                                      pair_errors_deg, rotation_angle_deg,
-                                      rotation_covariance, rpy_std_deg, solve_wahba,
-                                      UnconstrainedBoresightError)
+from accelcal_ros.lidar.wahba import (check_constrained, holdout, observability_warnings,
+                                      pair_errors_deg, rotation_angle_deg, rotation_covariance,
+                                      rpy_std_deg, solve_wahba)
 from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
@@ -169,7 +165,8 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
     variances: List[float] = []
     inliers: List[int] = []
     for pos, pts in track(valid, 'boresight: floor per position'):
-        f = _unit(np.asarray(pos.gravity_m_s2, dtype=float))
+        f = np.asarray(pos.gravity_m_s2, dtype=float)
+        f = f / np.linalg.norm(f)
         up = prior.T @ f
         try:
             plane = find_floor(pts, search, up)

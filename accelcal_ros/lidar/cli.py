@@ -99,7 +99,7 @@ def register(subparsers: argparse._SubParsersAction,
 
 
 def _is_bag(path: str) -> bool:
-    from accelcal_ros.recording.cli_support import is_bag
+    from accelcal_ros.recording.bag import is_bag
 
     return is_bag(path)
 
@@ -291,7 +291,8 @@ def _error_budget(args: argparse.Namespace) -> int:
 
 def _study(args: argparse.Namespace) -> int:
     from accelcal_ros.lidar import scanner_sim as sim
-    from accelcal_ros.lidar.boresight import calibrate_boresight, rotation_angle_deg
+    from accelcal_ros.lidar.boresight import calibrate_boresight
+    from accelcal_ros.lidar.wahba import rotation_angle_deg
     import numpy as np
 
     truth = sim.default_boresight()

@@ -16,9 +16,6 @@ from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ['CameraModel', 'draw_spots', 'pose_from_camera_attitude', 'project',
-           'render_emitters']
-
 
 def pose_from_camera_attitude(roll: float, pitch: float, yaw: float, position: Sequence[float],
                               imu_to_camera: np.ndarray = DEFAULT_IMU_TO_CAMERA

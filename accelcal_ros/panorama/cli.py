@@ -101,9 +101,9 @@ def write_image(path: PathLike, image: 'np.ndarray') -> None:
 def _stitch(args):
     import math
 
+    from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.errors import InputError
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.panorama.stitch import Stitcher
 
     if _is_bag_input(args):
@@ -163,16 +163,16 @@ def _add_stitch_bag_arguments(p):
 
 
 def _is_bag_input(args):
-    from accelcal_ros.recording.cli_support import is_bag
+    from accelcal_ros.recording.bag import is_bag
 
     return len(args.images) == 1 and is_bag(args.images[0])
 
 
 def _stitch_bag(args):
     """One levelled panorama per frame set of a recorded rig (video or PNG folder)."""
+    from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.errors import InputError
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import load_rig, resolve_imu_to_camera
     from accelcal_ros.panorama.stitch import Stitcher
     from accelcal_ros.recording.cli_support import open_bag, warn
     from accelcal_ros.panorama.bag import FrameSink, stitch_recording

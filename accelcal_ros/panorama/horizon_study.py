@@ -26,11 +26,11 @@ pitch`` errors, whose horizon deviations are computed with the closed form.
 import math
 from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
+from accelcal_ros.camera.rig import Rig, ring_rig
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, roll_pitch_from_specific_force,
                                  rotation_from_rpy_radians, specific_force_from_roll_pitch)
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import Rig, ring_rig
 from accelcal_ros.recording.progress import track
 import numpy as np
 

@@ -3,10 +3,10 @@ Lookup maps, fast: the coarse grid, cell classes and exact seams (the stitcher's
 
 Rays are projected into the rig by :mod:`.rig_projection` (the tilt, eq. 7; the camera
 choice, eq. 6; the lens); :mod:`.maps` builds exact maps; this module builds the
-same map fast. The names of those modules are re-exported here.
+same map fast.
 
 Maps are expressed in the coordinates of a *mosaic*: all camera images side by side,
-separated by black gaps (:class:`MosaicLayout`), so a whole panorama frame is one
+separated by black gaps (:class:`~.mosaic.MosaicLayout`), so a whole panorama frame is one
 ``cv2.remap`` of the mosaic. Pixel coordinates follow OpenCV (integers at pixel
 centres). Bilinear interpolation treats everything outside a frame as black: a point
 between the outermost pixel centres and one pixel beyond them fades linearly to black,
@@ -39,30 +39,19 @@ import math
 import time
 from typing import Optional, Tuple, TYPE_CHECKING
 
-from accelcal_ros.camera import distort_normalized, undistort_normalized
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama.maps import MapBuilder
-from accelcal_ros.panorama.mosaic import FIXED_POINT_LIMIT, MosaicLayout, OUTSIDE
-from accelcal_ros.panorama.rig_projection import (_SIDE_INVALID, DISTORTION_RADIUS_MARGIN,
-                                                  frame_border_pixels,
-                                                  frame_radius_and_limit2,
-                                                  normalized_from_pixels,
-                                                  reference_heading_rad, RigProjection,
-                                                  tilt_matrix)
+from accelcal_ros.panorama.mosaic import OUTSIDE
+from accelcal_ros.panorama.rig_projection import _SIDE_INVALID, RigProjection
 import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
     from concurrent.futures import ThreadPoolExecutor
 
+    from accelcal_ros.camera.rig import Rig
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import Rig
-
-__all__ = ['CENTRE_CHECK_FRACTION', 'distort_normalized', 'DISTORTION_RADIUS_MARGIN',
-           'FIXED_POINT_LIMIT', 'frame_border_pixels', 'frame_radius_and_limit2',
-           'LookupBuilder', 'MapBuilder', 'MosaicLayout', 'normalized_from_pixels', 'OUTSIDE',
-           'reference_heading_rad', 'RigProjection', 'tilt_matrix', 'undistort_normalized']
 
 CENTRE_CHECK_FRACTION = 0.75
 """A pure cell's error at its centre and edge midpoints must be below this fraction of

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
+    from accelcal_ros.camera.rig import Rig
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import Rig
 
 
 class MapBuilder(RigProjection):

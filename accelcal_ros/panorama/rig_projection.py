@@ -38,8 +38,8 @@ from numpy.typing import ArrayLike
 if TYPE_CHECKING:  # pragma: no cover - annotations only
     from concurrent.futures import ThreadPoolExecutor
 
+    from accelcal_ros.camera.rig import Rig
     from accelcal_ros.panorama.projection import PanoramaGeometry
-    from accelcal_ros.panorama.rig import Rig
 
 DISTORTION_RADIUS_MARGIN = 1.5
 """Rays farther from the axis than this times the frame's largest radius are rejected."""

@@ -21,9 +21,9 @@ import math
 import time
 from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
 
+from accelcal_ros.camera.rig import resolve_imu_to_camera
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
-from accelcal_ros.panorama.rig import resolve_imu_to_camera
 from accelcal_ros.panorama.rig_projection import tilt_matrix
 import numpy as np
 from numpy.typing import ArrayLike

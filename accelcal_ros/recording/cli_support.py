@@ -12,11 +12,11 @@ import os
 import sys
 from typing import Iterable, Union
 
-from accelcal_ros.recording.bag import BagReader, is_bag
+from accelcal_ros.recording.bag import BagReader
 
 PathLike = Union[str, 'os.PathLike[str]']
 
-__all__ = ['add_stamp_argument', 'is_bag', 'is_bag_output', 'open_bag', 'warn']
+__all__ = ['add_stamp_argument', 'is_bag_output', 'open_bag', 'warn']
 
 
 def add_stamp_argument(parser: argparse.ArgumentParser) -> None:

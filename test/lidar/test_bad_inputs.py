@@ -1,7 +1,8 @@
 """Inputs that used to give silent wrong results: mismatched calibration, NaN files."""
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import calibrate_boresight, rotation_angle_deg
+from accelcal_ros.lidar.boresight import calibrate_boresight
 from accelcal_ros.lidar.calibrate_dir import report_lines
+from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.sensor.model import SensorModel
 import pytest
 

@@ -1,11 +1,11 @@
 """Floor plane fit, Wahba solver and the boresight on paper B's simulated protocol."""
 from accelcal_ros.errors import CalibrationError, GeometryError
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import (calibrate_boresight, holdout, observability_warnings,
-                                          pair_errors_deg, rotation_angle_deg, rotation_covariance,
-                                          solve_wahba, StaticPosition)
+from accelcal_ros.lidar.boresight import calibrate_boresight, StaticPosition
 from accelcal_ros.lidar.plane_fit import find_floor, find_planes, FloorSearch, msac_plane
 from accelcal_ros.lidar.static_segments import find_static_segments, longest_static_segment
+from accelcal_ros.lidar.wahba import (holdout, observability_warnings, pair_errors_deg,
+                                      rotation_angle_deg, rotation_covariance, solve_wahba)
 from accelcal_ros.sensor.model import SensorModel
 from hypothesis import given, settings, strategies as st
 import numpy as np

@@ -1,9 +1,8 @@
 """Boresight uncertainty from what the positions constrain; degenerate inputs refused."""
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import (calibrate_boresight, rotation_angle_deg,
-                                          rotation_covariance, solve_wahba, StaticPosition,
-                                          UnconstrainedBoresightError)
-from accelcal_ros.lidar.wahba import small_sample_factor
+from accelcal_ros.lidar.boresight import calibrate_boresight, StaticPosition
+from accelcal_ros.lidar.wahba import (rotation_angle_deg, rotation_covariance, small_sample_factor,
+                                      solve_wahba, UnconstrainedBoresightError)
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation

@@ -1,7 +1,8 @@
 """Boresight without a prior in a box-shaped room: every fitting assignment, cues, refusal."""
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import calibrate_boresight, rotation_angle_deg
+from accelcal_ros.lidar.boresight import calibrate_boresight
 from accelcal_ros.lidar.floor_assign import AmbiguousFloorError
+from accelcal_ros.lidar.wahba import rotation_angle_deg
 import numpy as np
 import pytest
 

@@ -3,10 +3,11 @@ import time
 
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.boresight import load_boresight, rotation_angle_deg
+from accelcal_ros.lidar.boresight import load_boresight
 from accelcal_ros.lidar.ply import read_ply
 from accelcal_ros.lidar.scanner_sim_ros import (drive_moving_platform, drive_static_positions,
                                                 finish_calibration, PACKETS_PER_REVOLUTION)
+from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 import numpy as np
 import pytest

@@ -9,7 +9,7 @@ EMITTERS = np.array([[-0.3, -0.4, 0.0], [0.35, 0.45, 0.05]])
 
 
 def scene(roll_deg=4.0, pitch_deg=18.0, yaw_deg=179.0, position=(3.0, 0.3, 1.4), dist=None):
-    camera = render.CameraModel.from_fov(1280, 960, 60.0, dist_coeffs=dist)
+    camera = CameraModel.from_fov(1280, 960, 60.0, dist_coeffs=dist)
     rotation, translation = render.pose_from_camera_attitude(
         *np.radians([roll_deg, pitch_deg, yaw_deg]), position)
     return camera, rotation, translation
@@ -176,11 +176,11 @@ def test_colour_and_bad_images():
         beacons.DetectorSettings(min_area_px=10, max_area_px=5)
     with pytest.raises(InputError, match='sigma'):
         render.render_emitters(EMITTERS, np.eye(3), [0, 0, 5.0],
-                               render.CameraModel.from_fov(), sigma_px=0)
+                               CameraModel.from_fov(), sigma_px=0)
 
 
 def test_emitter_behind_camera_is_not_drawn():
-    camera = render.CameraModel.from_fov(320, 240, 60.0)
+    camera = CameraModel.from_fov(320, 240, 60.0)
     points = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, -5.0]])
     image, uv, depth = render.render_emitters(points, np.eye(3), np.zeros(3), camera,
                                               noise_std=0)

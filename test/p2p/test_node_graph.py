@@ -1,13 +1,14 @@
 """The installed ``p2p`` node in a real ROS 2 graph: poses from rendered images, bad input."""
 import time
 
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rpy_radians_from_rotation
 from accelcal_ros.p2p import render, solver
 import numpy as np
 import pytest
 
 EMITTERS = [-0.4, 0.0, 0.0, 0.4, 0.0, 0.0]
-CAMERA = render.CameraModel.from_fov(640, 480, 60.0)
+CAMERA = CameraModel.from_fov(640, 480, 60.0)
 
 
 def scene(yaw_deg):

@@ -1,4 +1,5 @@
 """The p2p node's logic without ROS: attitude matching, bad input, ambiguity, parameters."""
+from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rpy_radians_from_rotation
 from accelcal_ros.p2p import render, solver
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 EMITTERS = [-0.5, 0.0, 0.0, 0.5, 0.0, 0.0]
-CAMERA = render.CameraModel.from_fov(640, 480, 60.0)
+CAMERA = CameraModel.from_fov(640, 480, 60.0)
 
 
 def defaults(**changes):

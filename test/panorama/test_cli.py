@@ -1,10 +1,10 @@
 """``accelcal stitch`` and ``accelcal study horizon`` end to end, with bad inputs."""
 import math
 
+from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig, save_rig
 import cv2
 import numpy as np
 import pytest

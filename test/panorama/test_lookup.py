@@ -1,12 +1,13 @@
 """Lookup maps: tilt (eq. 7), camera choice (eq. 6), projection, and the fast rebuild."""
 import math
 
+from accelcal_ros.camera import distort_normalized, undistort_normalized
+from accelcal_ros.camera.rig import Rig, RigCamera, ring_rig
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_z
-from accelcal_ros.panorama.lookup import (distort_normalized, LookupBuilder, MosaicLayout,
-                                          normalized_from_pixels, OUTSIDE, tilt_matrix,
-                                          undistort_normalized)
+from accelcal_ros.panorama.lookup import LookupBuilder
+from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import Camera, Rig, ring_rig
+from accelcal_ros.panorama.rig_projection import normalized_from_pixels, tilt_matrix
 import cv2
 from hypothesis import given, settings, strategies as st
 import numpy as np
@@ -87,7 +88,7 @@ def test_camera_choice_is_eq6_and_projection_round_trips():
 def test_rays_behind_or_far_outside_a_distorted_camera_are_rejected():
     """A strongly distorted lens must not fold far-off rays back into its frame."""
     k = np.array([[200.0, 0, 159.5], [0, 200.0, 119.5], [0, 0, 1]])
-    cam = Camera('fish', 320, 240, k, np.array([-0.35, 0.08, 0, 0, 0]), np.eye(3))
+    cam = RigCamera('fish', 320, 240, k, np.array([-0.35, 0.08, 0, 0, 0]), np.eye(3))
     builder = LookupBuilder(Rig((cam,)), PanoramaGeometry(720, 480, 360.0, 170.0))
     exact = builder.build_exact(0.0, 0.0)
     seen = exact[..., 0] != OUTSIDE

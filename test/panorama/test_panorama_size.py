@@ -1,11 +1,11 @@
 """The stitcher's default panorama size: the reference camera's resolution (pure)."""
 import math
 
+from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.params import (panorama_size, panorama_size_from_focal,
                                           STITCHER_PARAMS)
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig
 import pytest
 
 

@@ -2,11 +2,11 @@
 import math
 import threading
 
+from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig
 from accelcal_ros.panorama.stitch import Stitcher
 import numpy as np
 import pytest

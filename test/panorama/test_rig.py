@@ -1,10 +1,10 @@
 """Rig files: loading, validation (errors name the camera), saving, the example rig."""
 import os
 
+from accelcal_ros.camera.rig import load_rig, ring_rig, save_rig
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import dump_yaml
 from accelcal_ros.frames import rot_y
-from accelcal_ros.panorama.rig import load_rig, ring_rig, save_rig
 import numpy as np
 import pytest
 

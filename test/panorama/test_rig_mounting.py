@@ -1,10 +1,9 @@
 """The rig file's optional imu_to_camera: read, written, validated, and who wins."""
+from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera, RigCamera, ring_rig, save_rig
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_z
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import (Camera, load_rig, resolve_imu_to_camera, ring_rig,
-                                       save_rig)
 from accelcal_ros.panorama.stitch import Stitcher
 import numpy as np
 import pytest
@@ -73,4 +72,4 @@ def test_explicit_value_wins_over_the_file_and_the_stitcher_uses_the_file():
         resolve_imu_to_camera(rig, [1, 0, 0, 0, 1, 0, 0, 0, -1])
     stitcher = Stitcher(rig, PanoramaGeometry(180, 120))
     assert np.allclose(stitcher.builder.imu_to_camera, MOUNT)
-    assert Camera.from_model('x', rig.cameras[0].model, np.eye(3)).K is rig.cameras[0].K
+    assert RigCamera.from_model('x', rig.cameras[0].model, np.eye(3)).K is rig.cameras[0].K

@@ -1,11 +1,11 @@
 """Stitcher against rendered ground truth: PSNR over the covered area, horizon row, edges."""
 import math
 
+from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_z
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig
 from accelcal_ros.panorama.stitch import Stitcher
 import numpy as np
 import pytest

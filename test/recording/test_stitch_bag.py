@@ -1,11 +1,11 @@
 """accelcal stitch BAG: a levelled panorama per recorded frame set (folder and video)."""
 import math
 
+from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
 from accelcal_ros.frames import specific_force_from_roll_pitch
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig, save_rig
 from accelcal_ros.recording.sim_bags import bag_path, T0_NS
 from accelcal_ros.recording.writer import BagWriter
 import cv2
