@@ -1,13 +1,14 @@
 """The ``stitcher`` executable in a real ROS 2 graph (e.g. 3 cameras 320x240 -> 720x480)."""
 import math
+import os
 import re
 import time
 
+from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.params import panorama_size_from_focal
 from accelcal_ros.panorama.projection import PanoramaGeometry
-from accelcal_ros.panorama.rig import ring_rig, save_rig
 from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
 from accelcal_ros.rosutil.stamps import seconds_to_stamp, stamp_to_seconds
 from builtin_interfaces.msg import Time
@@ -95,6 +96,13 @@ def test_stitcher_node_end_to_end(graph, tmp_path):
     diagnostics = graph.collect(DiagnosticArray, '/diagnostics', 10)
     feeder = Feeder(graph, views, topics)
     assert _wait_for_log(proc, 'stitching 3 cameras', 15.0), proc.output()
+    # a 1 MB panorama does not fit Fast DDS's default shared-memory segment: said
+    from rclpy.utilities import get_rmw_implementation_identifier
+    if get_rmw_implementation_identifier() == 'rmw_fastrtps_cpp' and not any(
+            os.environ.get(k) for k in ('FASTRTPS_DEFAULT_PROFILES_FILE',
+                                        'FASTDDS_DEFAULT_PROFILES_FILE')):
+        assert 'and 1.0 MB (panorama) exceed the default shared-memory segment' in \
+            proc.output()
     assert _wait_for_log(proc, 'no attitude received yet', 15.0, feeder.frames), proc.output()
     assert panoramas.snapshot()[0] == []
 
