@@ -7,6 +7,10 @@ The camera driver must publish ``<camera>/image_raw`` and ``<camera>/camera_info
 Arguments (the same in every launch file of this package): ``driver`` (start
 ``imu_driver``: true or false), ``backend`` (i2c, sim or replay), and one
 ``<node>_params`` parameter file per node (default the installed ``config/<node>.yaml``).
+``dds_profile`` (default the installed ``config/fastdds_large_shm.xml``) is the Fast DDS
+profile of the image node: frames larger than Fast DDS's default 0.5 MB shared-memory
+segment otherwise go over UDP and are lost at camera rates; start the camera drivers with
+the same ``FASTRTPS_DEFAULT_PROFILES_FILE``.
 """
 import os
 
@@ -37,6 +41,10 @@ def generate_launch_description():
                               description='parameter file of attitude'),
         DeclareLaunchArgument('p2p_params', default_value=os.path.join(config, 'p2p.yaml'),
                               description='parameter file of p2p'),
+        DeclareLaunchArgument('dds_profile',
+                              default_value=os.path.join(config, 'fastdds_large_shm.xml'),
+                              description='Fast DDS profile of the image nodes (large '
+                                          'shared-memory segment; camera drivers need it too)'),
         DeclareLaunchArgument('calibration_file', default_value='',
                               description='accelerometer calibration file for attitude'),
         Node(package='accelcal_ros', executable='imu_driver', name='imu_driver',
@@ -51,5 +59,7 @@ def generate_launch_description():
              parameters=[LaunchConfiguration('p2p_params')],
              remappings=[('image', [camera, '/image_raw']),
                          ('camera_info', [camera, '/camera_info'])],
+             additional_env={'FASTRTPS_DEFAULT_PROFILES_FILE':
+                             LaunchConfiguration('dds_profile')},
              output='screen'),
     ])

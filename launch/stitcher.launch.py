@@ -8,7 +8,10 @@ Launch the IMU driver, the attitude estimator and the ``stitcher`` node (levelle
 the camera topics default to ``<camera name>/image_raw``. Arguments (the same in every
 launch file of this package): ``driver`` (start ``imu_driver``: true or false),
 ``backend`` (i2c, sim or replay), and one ``<node>_params`` parameter file per node
-(default the installed ``config/<node>.yaml``).
+(default the installed ``config/<node>.yaml``). ``dds_profile`` (default the installed
+``config/fastdds_large_shm.xml``) is the Fast DDS profile of the image node: frames larger
+than Fast DDS's default 0.5 MB shared-memory segment otherwise go over UDP and are lost at
+camera rates; start the camera drivers with the same ``FASTRTPS_DEFAULT_PROFILES_FILE``.
 """
 import os
 
@@ -37,6 +40,10 @@ def generate_launch_description():
         DeclareLaunchArgument('stitcher_params',
                               default_value=os.path.join(config, 'stitcher.yaml'),
                               description='parameter file of stitcher'),
+        DeclareLaunchArgument('dds_profile',
+                              default_value=os.path.join(config, 'fastdds_large_shm.xml'),
+                              description='Fast DDS profile of the image nodes (large '
+                                          'shared-memory segment; camera drivers need it too)'),
         DeclareLaunchArgument('calibration_file', default_value='',
                               description='accelerometer calibration file for attitude'),
         DeclareLaunchArgument('rig_file',
@@ -53,5 +60,7 @@ def generate_launch_description():
         Node(package='accelcal_ros', executable='stitcher', name='stitcher',
              parameters=[LaunchConfiguration('stitcher_params'),
                          {'rig_file': LaunchConfiguration('rig_file')}],
+             additional_env={'FASTRTPS_DEFAULT_PROFILES_FILE':
+                             LaunchConfiguration('dds_profile')},
              output='screen'),
     ])

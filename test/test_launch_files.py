@@ -136,3 +136,16 @@ def test_launch_file_follows_the_convention(path, monkeypatch):
                 assert node.kwargs['condition'] == IfCondition(LaunchConfiguration('driver'))
         used.update(_configurations(node))
     assert set(arguments) == used, f'declared but unused: {set(arguments) - used}'
+
+
+def test_image_nodes_get_the_large_message_dds_profile(monkeypatch):
+    """The stitcher and p2p nodes run with the shipped Fast DDS profile (dds_profile)."""
+    for name in ('stitcher', 'p2p'):
+        path = os.path.join(REPO, 'launch', f'{name}.launch.py')
+        arguments, nodes = _describe(path, monkeypatch)
+        assert os.path.isfile(arguments['dds_profile'])
+        assert arguments['dds_profile'].endswith(os.path.join('config', 'fastdds_large_shm.xml'))
+        (node,) = [n for n in nodes if n.kwargs['executable'] == name]
+        env = node.kwargs['additional_env']
+        assert list(_configurations(env)) == ['dds_profile']
+        assert 'FASTRTPS_DEFAULT_PROFILES_FILE' in env

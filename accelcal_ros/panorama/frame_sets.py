@@ -30,8 +30,9 @@ from dataclasses import dataclass
 import math
 import threading
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Type
 
+from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.stamp_sync import StampMatcher
 
 JUMP_THRESHOLD_S = 2.0
@@ -294,17 +295,22 @@ class FrameSetWorker:
     The one thread that polls a :class:`FrameSetPolicy` and hands sets to ``stitch``.
 
     Call :meth:`wake` after adding a frame or an attitude. ``stitch(frame_set)`` runs in
-    this thread; an exception it raises goes to ``on_error(exc)`` and the thread goes on.
+    this thread; an exception of the ``recoverable`` types that it raises goes to
+    ``on_error(exc)`` and the thread goes on (default: bad input and numeric failures; a
+    node, the process boundary, passes ``(Exception,)`` so that its thread always lives).
     :meth:`close` stops the thread. ``clock``: the policy's ``now_s`` (monotonic seconds).
     """
 
     def __init__(self, policy: FrameSetPolicy, stitch: Callable[[FrameSet], None],
                  on_error: Callable[[Exception], None],
                  clock: Callable[[], float] = time.monotonic, idle_s: float = 0.1,
-                 retry_s: float = 0.005):
+                 retry_s: float = 0.005,
+                 recoverable: Tuple[Type[Exception], ...] = (
+                     AccelcalError, ValueError, ArithmeticError)):
         self.policy = policy
         self._stitch = stitch
         self._on_error = on_error
+        self._recoverable = recoverable
         self._clock = clock
         self._idle_s, self._retry_s = idle_s, retry_s
         self._wake = threading.Event()
@@ -326,7 +332,7 @@ class FrameSetWorker:
                 frame_set = self.policy.poll(self._clock())
                 if frame_set is not None:
                     self._stitch(frame_set)
-            except Exception as exc:  # noqa: B902 - the thread must live; on_error says why
+            except self._recoverable as exc:  # on_error says why; the thread goes on
                 self._on_error(exc)
 
     def close(self, timeout_s: float = 2.0) -> None:

@@ -126,7 +126,8 @@ class StitcherNode(Node):
             if v['compressed_output'] else None
         self.diagnostics = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_timer(1.0, self._publish_diagnostics)
-        self.worker = FrameSetWorker(self.policy, self._stitch, self._on_error)
+        self.worker = FrameSetWorker(self.policy, self._stitch, self._on_error,
+                                     recoverable=(Exception,))  # the thread always lives
         inputs = ', '.join(f'{c.name} <- {t}' for c, t in zip(self.rig.cameras, topics))
         self.get_logger().info(
             f'stitching {len(self.rig)} cameras ({inputs}) into a {geometry.width}x'
