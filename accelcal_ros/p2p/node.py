@@ -26,6 +26,7 @@ import threading
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
+from accelcal_ros.rosutil.dds import use_large_message_profile
 from accelcal_ros.rosutil.images import image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -200,6 +201,7 @@ class P2PNode(Node):
 
 def main(args=None):
     """Run the ``p2p`` node (events executor: the least CPU per received frame)."""
+    use_large_message_profile()  # frames and panoramas through shared memory
     return run(P2PNode, args, executor='events')
 
 

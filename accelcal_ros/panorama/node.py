@@ -42,6 +42,7 @@ from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
+from accelcal_ros.rosutil.dds import large_message_profile_path, use_large_message_profile
 from accelcal_ros.rosutil.images import image_array, image_cdr, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -138,16 +139,25 @@ class StitcherNode(Node):
         self._transport_hint(geometry)
 
     def _transport_hint(self, geometry):
-        """Say once when Fast DDS's default transport will lose frames of this size."""
+        """Say once when frames of this size need the camera drivers' DDS profile too."""
         from rclpy.utilities import get_rmw_implementation_identifier
 
-        if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp' or any(
-                os.environ.get(k) for k in ('FASTRTPS_DEFAULT_PROFILES_FILE',
-                                            'FASTDDS_DEFAULT_PROFILES_FILE')):
+        if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp':
             return
         frame_mb = max(c.width * c.height * 3 for c in self.rig.cameras) / 2 ** 20
         out_mb = geometry.width * geometry.height * 3 / 2 ** 20
-        if max(frame_mb, out_mb) > FASTDDS_DEFAULT_SHM_MB:
+        if max(frame_mb, out_mb) <= FASTDDS_DEFAULT_SHM_MB:
+            return
+        profile = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or os.environ.get(
+            'FASTDDS_DEFAULT_PROFILES_FILE')
+        if profile == large_message_profile_path():
+            self.get_logger().info(
+                f'frames of {frame_mb:.1f} MB and panoramas of {out_mb:.1f} MB exceed Fast '
+                f"DDS's default shared-memory segment ({FASTDDS_DEFAULT_SHM_MB} MB): this node "
+                f'uses {profile}; start the camera drivers (and viewers) with '
+                f'FASTRTPS_DEFAULT_PROFILES_FILE={profile} too, or their frames go over UDP '
+                'loopback, where they are lost at camera rates')
+        elif not profile:
             self.get_logger().info(
                 f'messages of {frame_mb:.1f} MB (frames) and {out_mb:.1f} MB (panorama) '
                 f'exceed the default shared-memory segment of Fast DDS ({FASTDDS_DEFAULT_SHM_MB} '
@@ -326,6 +336,7 @@ class StitcherNode(Node):
 
 def main(args=None):
     """Run the ``stitcher`` node (events executor: the least CPU per received frame)."""
+    use_large_message_profile()  # frames and panoramas through shared memory
     return run(StitcherNode, args, executor='events')
 
 
