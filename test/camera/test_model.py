@@ -87,6 +87,22 @@ def test_distortion_functions_invert_each_other_vectorised():
         assert np.abs(bx - x).max() < 1e-10 and np.abs(by - y).max() < 1e-10
 
 
+def test_a_few_points_take_the_float_path_with_the_same_result():
+    """Up to SCALAR_POINTS points are inverted on floats: equal to the array path."""
+    rng = np.random.default_rng(5)
+    x, y = rng.uniform(-0.5, 0.5, (2, 40))
+    for model, d in LENSES.values():
+        d = CameraModel(640, 480, K, d, model).D
+        xd, yd = distort_normalized(x, y, d, model)
+        all_x, all_y = undistort_normalized(xd, yd, d, model)
+        for k in range(0, 40, 3):
+            few_x, few_y = undistort_normalized(xd[k:k + 3], yd[k:k + 3], d, model)
+            assert np.abs(few_x - all_x[k:k + 3]).max() < 1e-13
+            assert np.abs(few_y - all_y[k:k + 3]).max() < 1e-13
+        one_x, one_y = undistort_normalized(xd[0], yd[0], d, model)
+        assert np.shape(one_x) == () and abs(float(one_x) - all_x[0]) < 1e-13
+
+
 def test_points_behind_the_camera_give_nan_and_one_point_works():
     """A point at z <= 0 has no pixel; a single (3,) point gives one (1, 2) row."""
     camera = CameraModel(640, 480, K)
