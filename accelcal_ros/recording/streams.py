@@ -11,7 +11,7 @@ the times go backwards or jump, and when the header stamps are far from the rece
 is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
 """
 from dataclasses import dataclass, field
-from typing import Any, List, Optional, Tuple, TYPE_CHECKING
+from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
@@ -200,6 +200,15 @@ def _check_ns(name: str, header_ns: np.ndarray, receive_ns: np.ndarray, stamp: s
     return check_stamps(name, rel_header, rel_receive, stamp)
 
 
+def _message_times(bag: BagReader, name: str, header_s: Sequence[float],
+                   receive_s: Sequence[float]) -> Tuple[np.ndarray, List[str]]:
+    """Return each message's time (s) as ``bag.stamp`` says and the stamp warnings."""
+    header, receive = np.array(header_s), np.array(receive_s)
+    warnings = check_stamps(name, header, receive, bag.stamp)
+    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    return t, warnings
+
+
 @dataclass
 class PoseStreamArrays:
     """Odometry poses: ``t`` (s), position (N, 3) m, quaternion (N, 4) x y z w."""
@@ -225,9 +234,7 @@ def read_odometry(bag: BagReader, topic: Optional[str], option: str = '--odom'
         quat.append(q)
         header_s.append(message.header_ns * 1e-9)
         receive_s.append(message.receive_ns * 1e-9)
-    header, receive = np.array(header_s), np.array(receive_s)
-    warnings = check_stamps(name, header, receive, bag.stamp)
-    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    t, warnings = _message_times(bag, name, header_s, receive_s)
     t, (position, quaternion), more = _sorted_unique(name, t, np.array(pos).reshape(-1, 3),
                                                      np.array(quat).reshape(-1, 4))
     return PoseStreamArrays(name, t, position, quaternion, warnings + more)
@@ -255,9 +262,7 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
         rp.append(convert.attitude_roll_pitch(message.msg))
         header_s.append(message.header_ns * 1e-9)
         receive_s.append(message.receive_ns * 1e-9)
-    header, receive = np.array(header_s), np.array(receive_s)
-    warnings = check_stamps(name, header, receive, bag.stamp)
-    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
+    t, warnings = _message_times(bag, name, header_s, receive_s)
     t, (roll_pitch,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
     return AttitudeStream(name, t, roll_pitch[:, 0], roll_pitch[:, 1], warnings + more)
 
