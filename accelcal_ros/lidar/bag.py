@@ -26,8 +26,8 @@ from accelcal_ros.lidar.poses import PoseStream
 from accelcal_ros.lidar.static_segments import find_static_segments
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagReader
-from accelcal_ros.recording.streams import (check_stamps, message_time_ns, message_time_s,
-                                            read_imu)
+from accelcal_ros.recording.streams import (message_time_ns, message_time_s, read_imu,
+                                            StampLog)
 from accelcal_ros.sensor.model import SensorModel
 import numpy as np
 from numpy.typing import ArrayLike
@@ -59,12 +59,11 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
     stops = np.array([s.t_stop for s in segments])
     middles = 0.5 * (starts + stops)
     kept: List[list] = [[] for _ in segments]   # heaps of (-|t - middle|, order, points)
-    header, receive = [], []
+    stamp_log = StampLog()
     outside = 0
     for k, message in enumerate(bag.messages([points_name], f'reading {points_name}')):
         t = (message_time_ns(message, bag.stamp) - imu.epoch_ns) / 1e9
-        header.append(message.header_ns * 1e-9)
-        receive.append(message.receive_ns * 1e-9)
+        stamp_log.add(message)
         i = int(np.searchsorted(starts, t, side='right')) - 1
         if i < 0 or t > stops[i]:
             outside += 1
@@ -75,7 +74,7 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
             heapq.heappush(heap, item)
         elif item[0] > heap[0][0]:
             heapq.heapreplace(heap, item)
-    warnings += check_stamps(points_name, np.array(header), np.array(receive), bag.stamp)
+    warnings += stamp_log.warnings(points_name, bag.stamp)
     positions, dropped, spans = [], {}, []
     for i, (seg, heap) in enumerate(zip(segments, kept)):
         name = f'pos{i + 1:02d}'
@@ -107,11 +106,10 @@ def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseS
     from accelcal_ros.lidar.georef import georeference
 
     name = bag.select_topic(points_topic, (convert.POINTCLOUD2,), '--points')
-    parts, header, receive = [], [], []
+    parts, stamp_log = [], StampLog()
     totals = {'total': 0, 'kept': 0, 'before_span': 0, 'after_span': 0, 'non_finite': 0}
     for message in bag.messages([name], f'georeferencing {name}'):
-        header.append(message.header_ns * 1e-9)
-        receive.append(message.receive_ns * 1e-9)
+        stamp_log.add(message)
         cloud = convert.cloud_array(message.msg)
         if not len(cloud):
             continue
@@ -132,7 +130,7 @@ def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseS
             parts.append(make_cloud(out, sub['intensity'] if 'intensity' in names else None,
                                     sub['ring'] if 'ring' in names else None,
                                     times[good][keep], 'timestamp', double=True))
-    warnings = check_stamps(name, np.array(header), np.array(receive), bag.stamp)
+    warnings = stamp_log.warnings(name, bag.stamp)
     if not parts:
         t0, t1 = poses.span
         raise InputError(f'no point of {name} lies in the span of the pose stream '

@@ -11,7 +11,7 @@ the times go backwards or jump, and when the header stamps are far from the rece
 is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
 """
 from dataclasses import dataclass, field
-from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import Any, List, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
@@ -200,13 +200,27 @@ def _check_ns(name: str, header_ns: np.ndarray, receive_ns: np.ndarray, stamp: s
     return check_stamps(name, rel_header, rel_receive, stamp)
 
 
-def _message_times(bag: BagReader, name: str, header_s: Sequence[float],
-                   receive_s: Sequence[float]) -> Tuple[np.ndarray, List[str]]:
-    """Return each message's time (s) as ``bag.stamp`` says and the stamp warnings."""
-    header, receive = np.array(header_s), np.array(receive_s)
-    warnings = check_stamps(name, header, receive, bag.stamp)
-    t = receive if bag.stamp == 'receive' else np.where(header != 0, header, receive)
-    return t, warnings
+class StampLog:
+    """A topic's header and receive stamps, kept while its messages stream by."""
+
+    def __init__(self) -> None:
+        self.header_ns: List[int] = []
+        self.receive_ns: List[int] = []
+
+    def add(self, message: BagMessage) -> None:
+        """Keep one message's stamps."""
+        self.header_ns.append(message.header_ns)
+        self.receive_ns.append(message.receive_ns)
+
+    def warnings(self, topic: str, stamp: str) -> List[str]:
+        """Return :func:`check_stamps` of what was kept."""
+        return check_stamps(topic, np.array(self.header_ns, dtype=np.int64) * 1e-9,
+                            np.array(self.receive_ns, dtype=np.int64) * 1e-9, stamp)
+
+    def times_s(self, stamp: str) -> np.ndarray:
+        """Return the times used (absolute s; :func:`used_times_ns`)."""
+        return used_times_ns(np.array(self.header_ns, dtype=np.int64),
+                             np.array(self.receive_ns, dtype=np.int64), stamp) * 1e-9
 
 
 @dataclass
@@ -224,17 +238,15 @@ def read_odometry(bag: BagReader, topic: Optional[str], option: str = '--odom'
                   ) -> PoseStreamArrays:
     """Read a nav_msgs/Odometry topic into arrays (sorted by time, repeats dropped)."""
     name = bag.select_topic(topic, (convert.ODOMETRY,), option)
-    header_s: List[float] = []
-    receive_s: List[float] = []
+    stamp_log = StampLog()
     pos: List[np.ndarray] = []
     quat: List[np.ndarray] = []
     for message in bag.messages([name], f'reading {name}'):
         p, q = convert.odometry_pose(message.msg)
         pos.append(p)
         quat.append(q)
-        header_s.append(message.header_ns * 1e-9)
-        receive_s.append(message.receive_ns * 1e-9)
-    t, warnings = _message_times(bag, name, header_s, receive_s)
+        stamp_log.add(message)
+    t, warnings = stamp_log.times_s(bag.stamp), stamp_log.warnings(name, bag.stamp)
     t, (position, quaternion), more = _sorted_unique(name, t, np.array(pos).reshape(-1, 3),
                                                      np.array(quat).reshape(-1, 4))
     return PoseStreamArrays(name, t, position, quaternion, warnings + more)
@@ -255,14 +267,12 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
                   ) -> AttitudeStream:
     """Read the attitude node's geometry_msgs/Vector3Stamped topic (x roll, y pitch, rad)."""
     name = bag.select_topic(topic, (convert.VECTOR3_STAMPED,), option)
-    header_s: List[float] = []
-    receive_s: List[float] = []
+    stamp_log = StampLog()
     rp: List[Tuple[float, float]] = []
     for message in bag.messages([name], f'reading {name}'):
         rp.append(convert.attitude_roll_pitch(message.msg))
-        header_s.append(message.header_ns * 1e-9)
-        receive_s.append(message.receive_ns * 1e-9)
-    t, warnings = _message_times(bag, name, header_s, receive_s)
+        stamp_log.add(message)
+    t, warnings = stamp_log.times_s(bag.stamp), stamp_log.warnings(name, bag.stamp)
     t, (roll_pitch,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
     return AttitudeStream(name, t, roll_pitch[:, 0], roll_pitch[:, 1], warnings + more)
 

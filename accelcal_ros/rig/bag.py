@@ -31,7 +31,7 @@ from accelcal_ros.errors import InputError
 from accelcal_ros.fileio import write_bytes_atomic
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagMessage, BagReader
-from accelcal_ros.recording.streams import check_stamps, message_time_ns, read_imu
+from accelcal_ros.recording.streams import message_time_ns, read_imu, StampLog
 from accelcal_ros.sensor.recording import save_recording
 from accelcal_ros.sensor.stillness import SegmentStats, still_segments
 import cv2
@@ -149,8 +149,7 @@ def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
     sizes: Dict[str, Tuple[int, int]] = {}
     index = {topic: i for i, topic in enumerate(topics)}
     latest: List[Optional[Tuple[float, BagMessage]]] = [None] * len(topics)
-    header: List[List[float]] = [[] for _ in topics]
-    receive: List[List[float]] = [[] for _ in topics]
+    stamp_logs = [StampLog() for _ in topics]
     os.makedirs(directory, exist_ok=True)
 
     def finish(k: int) -> None:
@@ -163,8 +162,7 @@ def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
     for message in bag.messages(topics, 'reading images'):
         i = index[message.topic]
         t = (message_time_ns(message, bag.stamp) - imu.epoch_ns) / 1e9
-        header[i].append(message.header_ns * 1e-9)
-        receive[i].append(message.receive_ns * 1e-9)
+        stamp_logs[i].add(message)
         latest[i] = (t, message)
         for passed in np.nonzero(~np.array(done) & (stops < t - FINISH_AFTER_S))[0].tolist():
             finish(passed)
@@ -184,7 +182,7 @@ def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
         if not done[k]:
             finish(k)
     for i, topic in enumerate(topics):
-        warnings += check_stamps(topic, np.array(header[i]), np.array(receive[i]), bag.stamp)
+        warnings += stamp_logs[i].warnings(topic, bag.stamp)
     poses, spans, dropped = [], [], {}
     for k, seg in enumerate(segments):
         name = pose_names[k]
