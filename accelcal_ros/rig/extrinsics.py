@@ -27,6 +27,7 @@ import time
 from typing import Dict, List, Sequence, Tuple
 
 from accelcal_ros.errors import CalibrationError
+from accelcal_ros.rig.intrinsics import views_over_limit
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
@@ -246,8 +247,8 @@ def fit_rig(observations: Dict[View, np.ndarray], object_points: np.ndarray,
         res = _solve(problem)
         resid = res.fun.reshape(len(views), -1)
         view_rms = np.sqrt(np.mean(resid ** 2, axis=1))
-        limit = max(max_view_rms_px, drop_factor * float(np.median(view_rms)))
-        bad = [(v, e) for v, e in zip(views, view_rms) if e > limit]
+        limit, bad = views_over_limit(list(zip(views, view_rms)), max_view_rms_px,
+                                      drop_factor)
         if not bad:
             break
         for v, e in bad:

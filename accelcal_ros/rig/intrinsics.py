@@ -12,13 +12,15 @@ the camera is calibrated again without it.
 ``distortion_model: plumb_bob``, ``distortion_coefficients: {data}``).
 """
 from dataclasses import dataclass, field
-from typing import Dict, List, Tuple
+from typing import Dict, List, Sequence, Tuple, TypeVar
 
 from accelcal_ros.camera import camera_model_from_mapping
 from accelcal_ros.errors import CalibrationError, FileFormatError, InputError
 from accelcal_ros.fileio import load_yaml_mapping
 import cv2
 import numpy as np
+
+Key = TypeVar('Key')
 
 MIN_VIEWS = 4
 
@@ -34,6 +36,18 @@ class Intrinsics:
     view_rms_px: Dict[str, float] = field(default_factory=dict)
     dropped: Dict[str, str] = field(default_factory=dict)
     source: str = 'board views'
+
+
+def views_over_limit(errors: Sequence[Tuple[Key, float]], min_px: float, factor: float
+                     ) -> Tuple[float, List[Tuple[Key, float]]]:
+    """
+    Return ``(limit, [(view, rms) above it])``: the views a fit drops and iterates without.
+
+    ``errors`` pairs each view with its reprojection RMS (px); the limit is the larger of
+    ``min_px`` and ``factor`` times the median RMS (intrinsics and the rig fit alike).
+    """
+    limit = max(min_px, factor * float(np.median([e for _, e in errors])))
+    return limit, [(view, e) for view, e in errors if e > limit]
 
 
 def view_rms(object_points: np.ndarray, corners: np.ndarray, k: np.ndarray,
@@ -72,8 +86,7 @@ def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.
             None, None, flags=flags)
         rms, k, d, _, _, _, _, per_view = result
         per_view = np.asarray(per_view, dtype=float).ravel()
-        limit = max(min_drop_px, drop_factor * float(np.median(per_view)))
-        bad = [(i, e) for i, e in zip(ids, per_view) if e > limit]
+        limit, bad = views_over_limit(list(zip(ids, per_view)), min_drop_px, drop_factor)
         if not bad:
             break
         for i, e in bad:
