@@ -38,9 +38,9 @@ class LidarCalibrationNode(Node):
 
         model = None
         if self.params['calibration_file']:
-            from accelcal_ros.lidar.static_segments import load_calibration_model
+            from accelcal_ros.sensor.calibration_file import load_sensor_model
 
-            model = load_calibration_model(self.params['calibration_file'])
+            model = load_sensor_model(self.params['calibration_file'])
         self._lock = threading.Lock()
         self._settings = CaptureSettings()
         self._apply_settings()

@@ -98,12 +98,6 @@ def register(subparsers: argparse._SubParsersAction,
     s.set_defaults(handler=_study)
 
 
-def _is_bag(path: str) -> bool:
-    from accelcal_ros.recording.bag import is_bag
-
-    return is_bag(path)
-
-
 def _add_boresight_bag_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``boresight BAG``: topics, stamps, scans per still period."""
     from accelcal_ros.recording.cli_support import add_stamp_argument
@@ -201,6 +195,7 @@ def _boresight(args: argparse.Namespace) -> int:
     from accelcal_ros.frames import rotation_from_rpy_radians
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)
+    from accelcal_ros.recording.bag import is_bag
     import numpy as np
 
     prior = None
@@ -208,10 +203,10 @@ def _boresight(args: argparse.Namespace) -> int:
         prior = rotation_from_rpy_radians(*np.radians(args.prior_rpy_deg))
     model = None
     if args.calibration:
-        from accelcal_ros.lidar.static_segments import load_calibration_model
+        from accelcal_ros.sensor.calibration_file import load_sensor_model
 
-        model = load_calibration_model(args.calibration)
-    if _is_bag(args.directory):
+        model = load_sensor_model(args.calibration)
+    if is_bag(args.directory):
         result = _boresight_from_bag(args, prior, model)
     else:
         result = calibrate_directory(args.directory, prior, model, _search_from(args),

@@ -93,15 +93,3 @@ def longest_static_segment(t: ArrayLike, accel: ArrayLike, gyro: Optional[ArrayL
     if not segments:
         return None
     return max(segments, key=lambda s: s.duration_s)
-
-
-def load_calibration_model(path: str) -> SensorModel:
-    """
-    Load an accelerometer calibration (issue 3's file) as a SensorModel.
-
-    Uses :func:`accelcal_ros.sensor.calibration_file.load_sensor_model`, which raises
-    FileFormatError for missing, truncated or wrong-shape files.
-    """
-    from accelcal_ros.sensor.calibration_file import load_sensor_model
-
-    return load_sensor_model(path)
