@@ -85,6 +85,13 @@ def build_parser() -> argparse.ArgumentParser:
     study = sub.add_parser('study', help='accuracy studies against ground truth and the papers')
     study_sub = study.add_subparsers(dest='study', metavar='STUDY')
     study_sub.required = True
+    sample = sub.add_parser('sample-data', help='write the simulated recordings the '
+                            "README's commands use (bags, CSV, PCD, images) into DIR")
+    sample.add_argument('out_dir', metavar='DIR', help='directory to write into (created)')
+    sample.add_argument('--only', nargs='+', metavar='JOURNEY',
+                        choices=[name for name, _ in _sample_journeys()],
+                        help='write only these journeys (default: all)')
+    sample.set_defaults(handler=_sample_data)
     for name in FEATURE_CLI_MODULES:
         try:
             module = importlib.import_module(name)
@@ -94,6 +101,20 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         module.register(sub, study_sub)
     return parser
+
+
+def _sample_journeys():
+    from accelcal_ros.sample_data import JOURNEYS
+
+    return JOURNEYS
+
+
+def _sample_data(args: argparse.Namespace) -> int:
+    from accelcal_ros.sample_data import write_sample_data
+
+    written = write_sample_data(args.out_dir, args.only)
+    print(f'wrote {len(written)} sample recordings to {args.out_dir}: {", ".join(written)}')
+    return 0
 
 
 def input_paths(args: argparse.Namespace) -> List[str]:
