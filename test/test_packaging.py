@@ -34,7 +34,18 @@ def test_every_declared_key_is_a_verified_rosdistro_key():
     assert declared and len(declared) == len(set(declared))
     verified = _verified_keys()
     assert set(declared) - set(verified) == set()
-    assert set(verified.values()) <= {'jazzy/distribution.yaml', 'rosdep/python.yaml'}
+    assert set(verified.values()) <= {'jazzy/distribution.yaml', 'rosdep/python.yaml',
+                                      'rosdistro-PR'}
+
+
+def test_keys_added_after_the_snapshot_name_their_rosdistro_pull_request():
+    """python3-smbus2 and python3-rosbags-pip: each with the merged PR that added it."""
+    with open(os.path.join(REPO, 'tools', 'rosdep-keys.txt')) as handle:
+        rows = [line.split() for line in handle if line.strip() and not line.startswith('#')]
+    added = {row[0]: row[2] for row in rows if row[1] == 'rosdistro-PR'}
+    assert {'python3-smbus2', 'python3-rosbags-pip'} <= set(added)
+    assert all(re.fullmatch(r'#\d+', number) for number in added.values())
+    assert 'python3-smbus2-pip' not in _declared_keys()
 
 
 def test_no_unused_message_package_is_declared():
