@@ -15,8 +15,8 @@ import socket
 import stat
 import threading
 
-from accelcal_ros.errors import AccelcalError, FileFormatError, FileWriteError, InputError
 from accelcal_ros import fileio
+from accelcal_ros.errors import AccelcalError, FileFormatError, FileWriteError, InputError
 import numpy as np
 import pytest
 
@@ -110,16 +110,16 @@ def test_reads_are_bounded_by_the_size_limit_of_the_format(tmp_path, monkeypatch
     path.write_text('a: [' + ', '.join(['1.0'] * 5000) + ']\n')
     assert fileio.load_yaml_mapping(path)['a'][0] == 1.0
     monkeypatch.setitem(fileio.SIZE_LIMITS, 'yaml', 2**20 // 64)
-    with pytest.raises(FileFormatError, match='larger .* than the 0 MiB this package reads '
-                                              'from a yaml file'):
+    with pytest.raises(FileFormatError,
+                       match='larger .* than the 0 MiB this package reads from a yaml file'):
         fileio.load_yaml_mapping(path)
     # every kind has a stated limit, none beyond what a 64-bit process could hold
     assert set(fileio.SIZE_LIMITS) >= {'yaml', 'csv', 'point cloud', 'image', 'text line'}
     assert all(0 < v <= 4 * 2**30 for v in fileio.SIZE_LIMITS.values())
 
 
-def test_calibration_from_dev_zero_and_a_fifo_in_the_cli_is_one_line(tmp_path, capsys,
-                                                                    monkeypatch):
+def test_calibration_from_dev_zero_and_a_fifo_in_cli_is_one_line(tmp_path, capsys,
+                                                                 monkeypatch):
     """`accelcal attitude --calibration /dev/zero|FIFO REC`: status 1, one line, quick."""
     from accelcal_ros.cli import main
     from accelcal_ros.sensor.recording import save_recording
@@ -278,3 +278,18 @@ def test_output_path_problems_are_found_before_any_work(tmp_path):
     assert 'directory' in fileio.output_path_problem(str(tmp_path))
     assert 'empty' in fileio.output_path_problem('')
     assert isinstance(AccelcalError(), Exception)
+
+
+@pytest.mark.parametrize('exe', ['calibration', 'lidar_calibration', 'rig_calibration',
+                                 'cloud_assembler'])
+def test_output_file_parameters_refuse_devices_directories_and_empty(tmp_path, exe):
+    """Every node's output_file: /dev/full and a directory refused; empty only where 'none'."""
+    from accelcal_ros.node_params import node_specs
+
+    spec = {s.name: s for s in node_specs(exe)}['output_file']
+    for bad in ('/dev/full', '/dev/null', str(tmp_path)):
+        value, reason = spec.check(bad)
+        assert value is None and reason.startswith('output_file: '), (bad, reason)
+    _, reason = spec.check('')
+    assert (reason is None) == (exe == 'cloud_assembler'), reason
+    assert spec.check(str(tmp_path / 'out.yaml')) == (str(tmp_path / 'out.yaml'), None)

@@ -145,7 +145,7 @@ def _check_bag_directory(path: Path) -> None:
         info = check_regular_file(entry, 'file of the bag')
         if entry.name == 'metadata.yaml' and info.st_size > SIZE_LIMITS['yaml']:
             raise FileFormatError(entry, f'larger than the {SIZE_LIMITS["yaml"] // 2**20} MiB '
-                                  'a bag\'s metadata.yaml may have; not a rosbag2 metadata file')
+                                  "a bag's metadata.yaml may have; not a rosbag2 metadata file")
 
 
 def _reason(exc: BaseException) -> str:
