@@ -270,6 +270,29 @@ def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
     return data
 
 
+_YAML12_NUMBER = re.compile(r'^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$')
+
+
+def yaml_number(value: Any) -> Optional[float]:
+    """
+    Return a YAML scalar as a float when it is a number, else None.
+
+    An int or float is a number, a bool is not (``true`` is not 1.0). A string that YAML
+    1.2 reads as a number (``1e-3``: PyYAML's YAML 1.1 reads it as text) counts too; an
+    integer beyond a double is infinity (the caller's finiteness check names it).
+    """
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        try:
+            return float(value)
+        except OverflowError:
+            return math.copysign(math.inf, value)
+    if isinstance(value, str) and _YAML12_NUMBER.match(value.strip()):
+        return float(value)
+    return None
+
+
 #: most values (after expanding YAML aliases) a file may hold: a guard against alias bombs
 MAX_YAML_NODES = 1_000_000
 
