@@ -118,13 +118,13 @@ def _sample_data(args: argparse.Namespace) -> int:
 
 
 def input_paths(args: argparse.Namespace) -> List[str]:
-    """Return the arguments of a parsed command that name existing files (not outputs)."""
+    """Return the arguments of a parsed command that name existing files or directories."""
     paths = []
     for dest, value in vars(args).items():
         if is_output_dest(dest):
             continue
         for item in (value if isinstance(value, (list, tuple)) else [value]):
-            if isinstance(item, (str, os.PathLike)) and item and os.path.isfile(item):
+            if isinstance(item, (str, os.PathLike)) and item and os.path.exists(item):
                 paths.append(os.fspath(item))
     return paths
 

@@ -13,13 +13,19 @@ An existing file keeps its permission bits; a new one gets ``0666 & ~umask`` lik
 file the user creates; a symbolic link is written through (it stays a link). Temporary
 files that a killed writer left next to the target (their pid no longer runs) are removed
 first. Any failure (read-only place, ``/proc``, a directory as target, no room) is a
-:class:`~accelcal_ros.errors.FileWriteError` naming the path. With ``backup=True`` the
-previous file is kept as ``<name>.bak``.
+:class:`~accelcal_ros.errors.FileWriteError` naming the path. Only a regular file (or
+nothing) is replaced: a device such as ``/dev/null`` or ``/dev/full``, a FIFO or a socket
+at the target is refused before anything is written. With ``backup=True`` the previous
+file is kept as ``<name>.bak`` by a hard link (a rename where links are not possible),
+never by a copy.
+
+Reading never follows a path into a device, FIFO or socket (:func:`check_regular_file`,
+``O_NONBLOCK`` and ``fstat``) and reads at most :data:`SIZE_LIMITS` bytes per format.
 
 Inside :func:`guard_inputs` (the ``accelcal`` dispatcher wraps every command in it) every
 file read through this module and every path given to it counts as an input: writing to an
 input (same resolved path or same inode) is refused with an :class:`InputError` unless the
-writer keeps a backup.
+writer keeps a backup; a path inside an input directory (a bag) is refused always.
 """
 import contextlib
 import csv
@@ -58,6 +64,11 @@ def _identity(path):
     return info.st_dev, info.st_ino
 
 
+def record_input(path: PathLike) -> None:
+    """Count ``path`` (a file or a directory such as a bag) as an input of the command."""
+    _record_input(os.fspath(path))
+
+
 def _record_input(path):
     inputs = getattr(_guard, 'inputs', None)
     if inputs is not None:
@@ -65,29 +76,157 @@ def _record_input(path):
         inputs[os.path.realpath(path)] = (path, ident)
 
 
-def read_input_bytes(path: PathLike, what: str = 'file') -> bytes:
-    """
-    Return the whole content of ``path`` (bytes); FileFormatError if it cannot be read.
+#: most bytes read from one file, per format (a file beyond is refused before it is read
+#: whole): YAML files this package writes (calibration, rig, boresight, camera_info) are
+#: kilobytes; a CSV (an accelerometer recording at 3200 Hz for an hour is ~0.5 GB), a
+#: point cloud and an image are bounded far above anything real and below what fits in
+#: memory. Keys are the ``kind`` argument of :func:`read_input_bytes`.
+SIZE_LIMITS = {
+    'yaml': 16 * 2**20,
+    'csv': 1 * 2**30,
+    'point cloud': 2 * 2**30,
+    'image': 512 * 2**20,
+    'text line': 1 * 2**20,
+    'file': 1 * 2**30,
+}
 
-    A missing file, a directory, a device that cannot be read or a permission problem is
-    reported with the path and what the file was meant to be (``what``).
+
+def _file_kind(mode: int) -> str:
+    """Return what a non-regular file is, in words (``character device``...)."""
+    for test, name in ((stat.S_ISDIR, 'directory'), (stat.S_ISCHR, 'character device'),
+                       (stat.S_ISBLK, 'block device'), (stat.S_ISFIFO, 'FIFO (named pipe)'),
+                       (stat.S_ISSOCK, 'socket')):
+        if test(mode):
+            return name
+    return 'special file'
+
+
+def check_regular_file(path: PathLike, what: str = 'file') -> os.stat_result:
+    """
+    Return ``os.stat(path)`` of an existing regular file; FileFormatError otherwise.
+
+    A missing path, a directory, a device (``/dev/zero``), a FIFO or a socket is refused
+    before anything opens it (opening a FIFO blocks; a device never ends).
     """
     path = os.fspath(path)
     if not path:
         raise FileFormatError('""', f'empty path given for the {what}')
-    if not os.path.exists(path):
-        raise FileFormatError(path, f'{what} not found')
-    if os.path.isdir(path):
-        raise FileFormatError(path, f'is a directory, expected a {what}')
     try:
-        with open(path, 'rb') as handle:
-            data = handle.read()
+        info = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        raise FileFormatError(path, f'{what} not found') from None
+    except OSError as exc:
+        raise FileFormatError(path, f'cannot read {what}: {exc.strerror or exc}') from None
+    except ValueError as exc:  # a NUL byte in the path
+        raise FileFormatError(repr(path), f'invalid path for the {what} ({exc})') from None
+    if stat.S_ISDIR(info.st_mode):
+        raise FileFormatError(path, f'is a directory, expected a {what}')
+    if not stat.S_ISREG(info.st_mode):
+        raise FileFormatError(path, f'is a {_file_kind(info.st_mode)}, not a regular file: '
+                              f'the {what} must be a file on disk')
+    return info
+
+
+@contextlib.contextmanager
+def open_regular_file(path: PathLike, what: str = 'file') -> Iterator[IO[bytes]]:
+    """
+    Open an existing regular file for reading (binary) without following it into a device.
+
+    Checked with ``os.stat`` first, opened with ``O_NONBLOCK`` (a FIFO swapped in between
+    cannot block the open) and checked again with ``fstat`` on the open descriptor.
+    """
+    path = os.fspath(path)
+    check_regular_file(path, what)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, 'O_CLOEXEC', 0))
+    except OSError as exc:
+        raise FileFormatError(path, f'cannot read {what}: {exc.strerror or exc}') from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise FileFormatError(path, f'is a {_file_kind(mode)}, not a regular file: '
+                                  f'the {what} must be a file on disk')
+        os.set_blocking(fd, True)
+        handle = os.fdopen(fd, 'rb')
+    except BaseException:
+        os.close(fd)
+        raise
+    with handle:
+        yield handle
+
+
+def read_input_bytes(path: PathLike, what: str = 'file', kind: str = 'file') -> bytes:
+    """
+    Return the whole content of ``path`` (bytes); FileFormatError if it cannot be read.
+
+    A missing file, a directory, a device, FIFO or socket, a permission problem or a file
+    larger than ``SIZE_LIMITS[kind]`` is reported with the path and what the file was
+    meant to be (``what``).
+    """
+    path = os.fspath(path)
+    limit = SIZE_LIMITS[kind]
+    try:
+        with open_regular_file(path, what) as handle:
+            size = os.fstat(handle.fileno()).st_size
+            if size > limit:
+                raise FileFormatError(path, _too_large(what, kind, size))
+            data = handle.read(limit + 1)
     except MemoryError:
         raise FileFormatError(path, f'{what} is too large to read') from None
     except OSError as exc:
         raise FileFormatError(path, f'cannot read {what}: {exc.strerror or exc}') from None
+    if len(data) > limit:  # grew while read, or a /proc-like file with no size
+        raise FileFormatError(path, _too_large(what, kind, len(data)))
     _record_input(path)
     return data
+
+
+def read_image_file(path: PathLike, flags: int, what: str = 'image') -> Any:
+    """
+    Decode an image file with OpenCV (``cv2.imdecode`` with ``flags``); None if undecodable.
+
+    The bytes go through :func:`read_input_bytes` (a regular file of at most
+    ``SIZE_LIMITS['image']`` bytes), so a device or FIFO is refused, not read forever.
+    """
+    import cv2
+    import numpy as np
+
+    data = read_input_bytes(path, what, kind='image')
+    if not data:
+        return None
+    try:
+        return cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flags)
+    except cv2.error:
+        return None
+
+
+def open_text_lines(path: PathLike, what: str = 'file') -> Iterator[str]:
+    """
+    Yield the lines of a text file (undecodable bytes replaced), each at most 1 MiB.
+
+    The file must be a regular file (see :func:`open_regular_file`); a longer line is a
+    FileFormatError naming its number.
+    """
+    path = os.fspath(path)
+    limit = SIZE_LIMITS['text line']
+    with open_regular_file(path, what) as raw:
+        _record_input(path)
+        number = 0
+        while True:
+            line = raw.readline(limit + 1)
+            if not line:
+                return
+            number += 1
+            if len(line) > limit and not line.endswith(b'\n'):
+                raise FileFormatError(path, f'line longer than {limit // 2**20} MiB; not a '
+                                      f'{what}', number)
+            yield line.decode('utf-8', errors='replace')
+
+
+def _too_large(what: str, kind: str, size: int) -> str:
+    limit = SIZE_LIMITS[kind]
+    return (f'{what} is larger ({size} bytes or more) than the {limit // 2**20} MiB this '
+            f'package reads from a {kind} file; not a file of this package (or split it)')
 
 
 def decode_text(path: PathLike, data: bytes, what: str = 'file') -> str:
@@ -100,16 +239,16 @@ def decode_text(path: PathLike, data: bytes, what: str = 'file') -> str:
                               f'at offset {exc.start}); is this the right file?', line) from None
 
 
-def read_input_text(path: PathLike, what: str = 'file') -> str:
+def read_input_text(path: PathLike, what: str = 'file', kind: str = 'file') -> str:
     """Return the content of ``path`` as text (UTF-8); see :func:`read_input_bytes`."""
     path = os.fspath(path)
-    return decode_text(path, read_input_bytes(path, what), what)
+    return decode_text(path, read_input_bytes(path, what, kind), what)
 
 
 def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
     """Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise."""
     path = os.fspath(path)
-    text = read_input_text(path, what)
+    text = read_input_text(path, what, kind='yaml')
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -129,6 +268,29 @@ def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
         raise FileFormatError(path, f'{what} expands to more than {MAX_YAML_NODES} values '
                               '(nested aliases?); not a file this package writes')
     return data
+
+
+_YAML12_NUMBER = re.compile(r'^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$')
+
+
+def yaml_number(value: Any) -> Optional[float]:
+    """
+    Return a YAML scalar as a float when it is a number, else None.
+
+    An int or float is a number, a bool is not (``true`` is not 1.0). A string that YAML
+    1.2 reads as a number (``1e-3``: PyYAML's YAML 1.1 reads it as text) counts too; an
+    integer beyond a double is infinity (the caller's finiteness check names it).
+    """
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        try:
+            return float(value)
+        except OverflowError:
+            return math.copysign(math.inf, value)
+    if isinstance(value, str) and _YAML12_NUMBER.match(value.strip()):
+        return float(value)
+    return None
 
 
 #: most values (after expanding YAML aliases) a file may hold: a guard against alias bombs
@@ -179,7 +341,7 @@ def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence
     import numpy as np
 
     path = os.fspath(path)
-    text = read_input_text(path, 'CSV file')
+    text = read_input_text(path, 'CSV file', kind='csv')
     reader = csv.reader(io.StringIO(text, newline=''))
     try:
         rows = _numeric_rows(path, reader, required, optional, finite, increasing)
@@ -253,7 +415,12 @@ def guard_inputs(paths: Iterable[Optional[PathLike]] = ()) -> Iterator[None]:
 
 
 def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLike]]) -> None:
-    """Raise InputError when ``output`` is one of ``inputs`` (same resolved path or inode)."""
+    """
+    Raise InputError when ``output`` is one of ``inputs`` or lies inside an input directory.
+
+    Same resolved path or same inode; a bag is a directory, so a path inside it (its
+    ``metadata.yaml``) is refused too.
+    """
     output = os.fspath(output)
     out_real = os.path.realpath(output)
     out_ident = _identity(output)
@@ -261,17 +428,26 @@ def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLi
         if given is None:
             continue
         given = os.fspath(given)
-        same = os.path.realpath(given) == out_real or (
+        given_real = os.path.realpath(given)
+        same = given_real == out_real or (
             out_ident is not None and _identity(given) == out_ident)
         if same:
             raise InputError(f'{output}: this is also an input of the command ({given}); '
                              'writing it would destroy the input: choose another output path')
+        if os.path.isdir(given_real) and out_real.startswith(given_real.rstrip(os.sep) + os.sep):
+            raise InputError(f'{output}: this is inside {given}, a directory the command '
+                             'reads (a bag is a directory); writing there would change the '
+                             'input: choose an output path outside it')
 
 
-def _check_guard(path):
+def _check_guard(path, backup=False):
     inputs = getattr(_guard, 'inputs', None)
-    if inputs:
-        refuse_overwriting_inputs(path, [given for given, _ in inputs.values()])
+    if not inputs:
+        return
+    given = [g for g, _ in inputs.values()]
+    if backup:  # the input file survives as .bak, but a directory read must stay as it was
+        given = [g for g in given if os.path.isdir(g)]
+    refuse_overwriting_inputs(path, given)
 
 
 # ---------------------------------------------------------------------------------------
@@ -346,40 +522,98 @@ def _write_file(target, data, mode):
     return tmp
 
 
+def _existing_target(path, shown):
+    """Return the stat of an existing target, None if there is none; refuse non-files."""
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise FileWriteError(shown, f'cannot write: {exc.strerror or exc}') from None
+    except ValueError as exc:  # a NUL byte in the path
+        raise FileWriteError(repr(shown), f'invalid path ({exc})') from None
+    if stat.S_ISDIR(info.st_mode):
+        raise FileWriteError(shown, 'is a directory; give a file name')
+    if not stat.S_ISREG(info.st_mode):
+        raise FileWriteError(shown, f'is a {_file_kind(info.st_mode)}, not a regular file: '
+                             'an output replaces only a regular file (or creates a new one); '
+                             'give a file path')
+    return info
+
+
+def output_path_problem(path: PathLike) -> Optional[str]:
+    """
+    Return why ``path`` cannot be an output file (empty, a directory, a device...), or None.
+
+    For the nodes' ``output_file`` parameters: checked when the value is set, so a bad
+    path is refused at once rather than after a calibration was captured.
+    """
+    path = os.path.expanduser(os.fspath(path))
+    if not path:
+        return 'empty: give the path of the file to write'
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return None  # a new file (whether its place is writable shows when it is written)
+    if stat.S_ISDIR(info.st_mode):
+        return f'{path} is a directory; give a file name'
+    if not stat.S_ISREG(info.st_mode):
+        return (f'{path} is a {_file_kind(info.st_mode)}, not a regular file: an output '
+                'replaces only a regular file (or creates a new one)')
+    return None
+
+
+def _keep_backup(path):
+    """
+    Keep the current ``path`` as ``path.bak`` without copying it.
+
+    A hard link under a temporary name renamed onto ``.bak`` (``path`` stays in place
+    until the new file replaces it); where the file system has no hard links the file is
+    renamed to ``.bak`` (``path`` is then briefly missing).
+    """
+    bak = path + '.bak'
+    tmp_bak = _temp_name(bak)
+    try:
+        os.link(path, tmp_bak)
+    except OSError:
+        os.replace(path, bak)
+        return
+    try:
+        os.replace(tmp_bak, bak)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp_bak)
+        raise
+
+
 def write_bytes_atomic(path: PathLike, data: bytes, backup: bool = False) -> None:
     """
     Write ``data`` (bytes) to ``path`` atomically; keep the old file as ``path.bak``.
 
-    Raises :class:`FileWriteError` (one line naming the path) when the file cannot be
-    written, and :class:`InputError` when ``path`` is an input of the running command.
+    Only a regular file (or nothing) is replaced: a directory, a device (``/dev/null``),
+    a FIFO or a socket at ``path`` is refused before anything is written. Raises
+    :class:`FileWriteError` (one line naming the path) when the file cannot be written,
+    and :class:`InputError` when ``path`` is an input of the running command (or lies
+    inside an input directory).
     """
     path = os.fspath(path)
     if not path:
         raise FileWriteError('""', 'empty output path')
-    if not backup:
-        _check_guard(path)
-    if os.path.isdir(path):
-        raise FileWriteError(path, 'is a directory; give a file name')
+    _check_guard(path, backup)
     shown = path
     if os.path.islink(path):  # write through the link: it keeps pointing at the new data
         path = os.path.realpath(path)
+    info = _existing_target(path, shown)
     directory = os.path.dirname(os.path.abspath(path))
     tmp = None
     try:
         if not os.path.isdir(directory):
             os.makedirs(directory, exist_ok=True)
         remove_stale_temp_files(path)
-        try:
-            mode = stat.S_IMODE(os.stat(path).st_mode)
-        except FileNotFoundError:
-            mode = 0o666 & ~_umask()
+        mode = stat.S_IMODE(info.st_mode) if info is not None else 0o666 & ~_umask()
         tmp = _write_file(path, data, mode)
-        if backup and os.path.exists(path):
-            bak = path + '.bak'
-            with open(path, 'rb') as src:
-                old = src.read()
-            tmp_bak = _write_file(bak, old, mode)
-            os.replace(tmp_bak, bak)
+        if backup and _existing_target(path, shown) is not None:
+            _keep_backup(path)
         os.replace(tmp, path)
         tmp = None
     except OSError as exc:

@@ -32,7 +32,8 @@ Camera optical frames (REP-103 ``_optical``): z forward, x right, y down. The de
 ``imu_to_camera`` rotation is for a camera looking along body +x:
 camera x = -body y, camera y = -body z, camera z = body x.
 """
-from typing import Tuple
+import math
+from typing import Optional, Tuple
 
 from accelcal_ros.errors import InputError
 import numpy as np
@@ -42,6 +43,40 @@ DEFAULT_IMU_TO_CAMERA = np.array([[0.0, -1.0, 0.0],
                                   [0.0, 0.0, -1.0],
                                   [1.0, 0.0, 0.0]])
 """Body (x fwd, y left, z up) -> optical (x right, y down, z fwd), camera along body +x."""
+
+ROLL_LIMIT_RAD = math.pi
+PITCH_LIMIT_RAD = math.pi / 2
+"""Range of an attitude (REP-103): roll in [-pi, pi], pitch in [-pi/2, pi/2]; anything else
+(pitch 4 rad, roll 1e300) is not an attitude ``roll_pitch_from_specific_force`` returns."""
+
+
+def attitude_problem(roll: float, pitch: float) -> Optional[str]:
+    """
+    Return why ``(roll, pitch)`` (rad) is not an attitude, or None when it is one.
+
+    Finite, ``|roll| <= pi`` and ``|pitch| <= pi/2`` (a tiny rounding margin allowed), the
+    range every attitude this package computes lies in. Used where an attitude enters (a
+    message, an option, a file) so that a wrapped or absurd angle is refused, not used.
+    """
+    try:
+        r, p = float(roll), float(pitch)
+    except (TypeError, ValueError, OverflowError):
+        return f'roll={roll!r}, pitch={pitch!r} are not numbers'
+    if not (math.isfinite(r) and math.isfinite(p)):
+        return f'roll={r}, pitch={p} is not finite'
+    margin = 1e-9
+    if abs(r) > ROLL_LIMIT_RAD + margin or abs(p) > PITCH_LIMIT_RAD + margin:
+        return (f'roll={r:.6g} rad, pitch={p:.6g} rad is outside roll +-pi, pitch +-pi/2 '
+                '(REP-103 attitude; degrees sent as radians?)')
+    return None
+
+
+def check_attitude(roll: float, pitch: float, where: str = 'attitude') -> Tuple[float, float]:
+    """Return ``(roll, pitch)`` as floats; :class:`InputError` naming ``where`` if not one."""
+    problem = attitude_problem(roll, pitch)
+    if problem:
+        raise InputError(f'{where}: {problem}')
+    return float(roll), float(pitch)
 
 
 def rot_x(angle_rad: float) -> np.ndarray:

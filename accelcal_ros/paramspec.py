@@ -112,6 +112,25 @@ class ParamSpec:
         return coerced, None
 
 
+def output_file_check(allow_empty: bool = False) -> Callable[[Any], Optional[str]]:
+    """
+    Return a ``validator`` for an output-file parameter.
+
+    Refuses an empty value (unless ``allow_empty``: empty then means "no file"), an
+    existing directory and anything that is not a regular file (``/dev/full``, a FIFO),
+    with :func:`accelcal_ros.fileio.output_path_problem`'s reason.
+    """
+    from accelcal_ros.fileio import output_path_problem
+
+    def check(value: Any) -> Optional[str]:
+        if allow_empty and not str(value).strip():
+            return None
+        if not str(value).strip():
+            return 'must not be empty: give the path of the file to write'
+        return output_path_problem(str(value))
+    return check
+
+
 def infer_kind(default: Any) -> str:
     """Parameter kind from a default value (empty lists need an explicit kind)."""
     if isinstance(default, bool):

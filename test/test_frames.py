@@ -1,4 +1,6 @@
 """Frame and sign conventions: REP-103/145 and the mapping of paper A's convention."""
+import math
+
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, down_in_camera,
                                  paper_gravity_from_specific_force, paper_roll_pitch,
@@ -80,3 +82,43 @@ def test_camera_down_vector_and_rotation_validation():
         rotation_matrix_from_list(np.diag([1.0, 1.0, -1.0]).ravel(), 'imu_to_camera')
     with pytest.raises(InputError, match='NaN'):
         rotation_matrix_from_list([np.nan] * 9)
+
+
+@pytest.mark.parametrize('roll, pitch, ok', [
+    (0.0, 0.0, True), (math.pi, math.pi / 2, True), (-math.pi, -math.pi / 2, True),
+    (0.0, 4.0, False), (1e300, 0.0, False), (0.0, math.nan, False), (math.inf, 0.0, False),
+    (3.2, 0.0, False), (0.0, -1.6, False), ('x', 0.0, False),
+])
+def test_attitude_range_is_checked_where_an_attitude_enters(roll, pitch, ok):
+    """Roll +-pi, pitch +-pi/2, finite (issue 26): one shared check with the reason."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.frames import attitude_problem, check_attitude
+
+    assert (attitude_problem(roll, pitch) is None) == ok
+    if ok:
+        assert check_attitude(roll, pitch) == (float(roll), float(pitch))
+    else:
+        with pytest.raises(InputError, match='^attitude at 1 s: '):
+            check_attitude(roll, pitch, 'attitude at 1 s')
+
+
+def test_out_of_range_attitudes_are_refused_by_the_p2p_pipeline_and_the_stitcher():
+    """p2p's pipeline raises (the node counts it); the stitcher's policy counts and says it."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.p2p.pipeline import P2PPipeline
+    from accelcal_ros.p2p.params import P2P_PARAMS
+    from accelcal_ros.panorama.frame_sets import FrameSetPolicy
+    from accelcal_ros.panorama.params import STITCHER_PARAMS
+
+    pipeline = P2PPipeline({s.name: s.default for s in P2P_PARAMS})
+    with pytest.raises(InputError, match='outside roll'):
+        pipeline.add_attitude(1.0, 0.0, 4.0)
+    assert pipeline.add_attitude(1.0, 0.1, 0.2) == []
+    logged = []
+    policy = FrameSetPolicy(['cam0'], {s.name: s.default for s in STITCHER_PARAMS},
+                            log=lambda level, text: logged.append(text))
+    assert not policy.add_attitude(1.0, 1e300, 0.0, 0.0)
+    assert not policy.add_attitude(2.0, 0.0, math.nan, 0.0)
+    assert policy.add_attitude(3.0, 0.1, 0.2, 0.0)
+    assert policy.rejected_attitudes == 2
+    assert len(logged) == 1 and 'outside roll +-pi' in logged[0]

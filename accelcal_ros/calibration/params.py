@@ -8,12 +8,8 @@ import os
 from typing import Any, Mapping
 
 from accelcal_ros.calibration.session import CalibratorConfig
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.paramspec import output_file_check, ParamSpec
 from accelcal_ros.sensor.model import MODELS
-
-
-def _non_empty(value):
-    return None if value.strip() else 'must not be empty'
 
 
 DEFAULT_OUTPUT_FILE = os.path.join('~', '.ros', 'accelcal', 'calibration.yaml')
@@ -63,7 +59,7 @@ CALIBRATION_PARAMS = (
              'of a captured one.', minimum=5.0, maximum=90.0, unit='deg'),
     ParamSpec('output_file', DEFAULT_OUTPUT_FILE, 'Calibration YAML written by finish '
               '(atomically; the previous file is kept as .bak). ~ is expanded.',
-              validator=_non_empty),
+              validator=output_file_check()),
     ParamSpec('attitude_node', 'attitude', 'Node whose calibration.* parameters finish sets '
               'through its set_parameters service (empty: do not apply).'),
     ParamSpec('status_period_s', 1.0, 'Period of calibration/status while a session runs '

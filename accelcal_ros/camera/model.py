@@ -28,9 +28,15 @@ from accelcal_ros.camera.distortion import (COEFFICIENT_COUNTS, distort_normaliz
                                             RATIONAL_POLYNOMIAL, undistort_equidistant_angle,
                                             undistort_normalized)
 from accelcal_ros.errors import InputError
+from accelcal_ros.fileio import yaml_number
 import numpy as np
 
 MAX_SIDE_PX = 100000
+MAX_FOCAL_PX = 1e6
+"""Largest focal length (px) taken: 1e6 px is a 0.06 deg field of view on a 1000 px image."""
+MAX_DISTORTION_COEFFICIENT = 1000.0
+"""Largest ``|D_i|`` taken: real lenses (rational models included) stay far below; a
+larger value is a broken file that would fold the image."""
 """Largest image width or height accepted (pixels)."""
 
 
@@ -39,6 +45,10 @@ def _coefficients(values: Any, model: str, where: str) -> Tuple[np.ndarray, str]
     d = np.asarray(values, dtype=float).reshape(-1)
     if not np.all(np.isfinite(d)):
         raise InputError(f'{where}D contains NaN or infinity')
+    if d.size and np.abs(d).max() > MAX_DISTORTION_COEFFICIENT:
+        raise InputError(f'{where}D = {d.tolist()} has a coefficient beyond '
+                         f'+-{MAX_DISTORTION_COEFFICIENT:g}: no lens distorts like that '
+                         '(broken file or wrong units)')
     model = model or PLUMB_BOB
     if model not in DISTORTION_MODELS:
         if not np.any(d):
@@ -78,12 +88,20 @@ def _camera_matrix(k: Any, where: str) -> np.ndarray:
         raise InputError(f'{where}K contains NaN or infinity')
     k = k.reshape(3, 3)
     if k[2, 2] > 0:
-        k = k / k[2, 2]
+        with np.errstate(over='ignore'):
+            k = k / k[2, 2]
     if (not k[0, 0] > 0 or not k[1, 1] > 0 or k[1, 0] != 0.0
             or np.abs(k[2] - [0.0, 0.0, 1.0]).max() > 1e-9):
         raise InputError(f'{where}K must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with focal '
                          f'lengths fx, fy > 0, got {k.reshape(-1).tolist()} (an all-zero K: '
                          'the camera is not calibrated)')
+    limit = MAX_FOCAL_PX
+    if not (np.all(np.isfinite(k)) and k[0, 0] <= limit and k[1, 1] <= limit
+            and abs(k[0, 1]) <= k[0, 0] and abs(k[0, 2]) <= 2 * MAX_SIDE_PX
+            and abs(k[1, 2]) <= 2 * MAX_SIDE_PX):
+        raise InputError(f'{where}K = {k.reshape(-1).tolist()} is not a camera: focal lengths '
+                         f'must be at most {limit:g} px, the skew at most fx and the principal '
+                         f'point within +-{2 * MAX_SIDE_PX} px (broken file or wrong units)')
     return k
 
 
@@ -279,10 +297,10 @@ def _numbers(value: Any, where: str, key: str) -> np.ndarray:
     if not isinstance(value, (list, tuple)) or isinstance(value, str):
         raise InputError(f'{where}{key} must be a list of numbers, got '
                          f'{type(value).__name__}')
-    try:
-        arr = np.array([float(v) for v in value], dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f'{where}{key} must contain numbers only, got {value!r}') from None
+    numbers = [yaml_number(v) for v in value]
+    if any(v is None for v in numbers):
+        raise InputError(f'{where}{key} must contain numbers only, got {value!r}')
+    arr = np.array(numbers, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise InputError(f'{where}{key} contains NaN or infinity')
     return arr

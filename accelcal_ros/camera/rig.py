@@ -35,12 +35,15 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 from accelcal_ros.camera.distortion import PLUMB_BOB
 from accelcal_ros.camera.model import camera_model_from_mapping, CameraModel
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic, yaml_number
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, rot_x, rot_y, rot_z,
                                  rotation_matrix_from_list)
 import numpy as np
 
 REFERENCE_TOLERANCE = 1e-6
+SAME_ROTATION_TOLERANCE = 1e-6
+"""Largest element difference between two ``R`` taken as the same rotation (a rig whose
+cameras all share one ``R`` is refused: its file lost the rotations)."""
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -142,6 +145,12 @@ class Rig:
             raise InputError(f'camera 0 ({cams[0].name!r}) is the reference camera (it '
                              'carries the IMU): its R must be the identity (R_00 = I); '
                              'reorder the cameras or express R relative to it')
+        if len(cams) > 1 and all(np.abs(c.R - cams[0].R).max() <= SAME_ROTATION_TOLERANCE
+                                 for c in cams[1:]):
+            raise InputError(f'all {len(cams)} cameras of the rig have the same R (they would '
+                             "all look the same way): R must be each camera's rotation R_0i "
+                             'from the rig calibration (accelcal rig-calibrate); was it left at '
+                             'the identity?')
         if self.imu_to_camera is not None:
             mount = rotation_matrix_from_list(np.asarray(self.imu_to_camera, dtype=float),
                                               name='imu_to_camera', tolerance=1e-4)
@@ -171,10 +180,10 @@ def _number_list(value: Any, count_choices: Sequence[int], where: str,
     if not isinstance(value, (list, tuple)):
         raise InputError(f'{where}: {key} must be a list of numbers, got '
                          f'{type(value).__name__}')
-    try:
-        arr = np.array([float(v) for v in value], dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f'{where}: {key} must contain numbers only, got {value!r}') from None
+    numbers = [yaml_number(v) for v in value]
+    if any(v is None for v in numbers):
+        raise InputError(f'{where}: {key} must contain numbers only, got {value!r}')
+    arr = np.array(numbers, dtype=float)
     if arr.size not in count_choices:
         wanted = ' or '.join(str(n) for n in count_choices)
         raise InputError(f'{where}: {key} needs {wanted} values, got {arr.size}')

@@ -8,7 +8,7 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 from typing import Any, Dict, Optional
 
 from accelcal_ros.lidar.capture import CaptureSettings
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.paramspec import output_file_check, ParamSpec
 
 _CAPTURE = CaptureSettings()
 
@@ -27,7 +27,8 @@ def _rpy_ok(value):
 
 
 LIDAR_CALIBRATION_PARAMS = (
-    ParamSpec('output_file', 'boresight.yaml', 'boresight YAML written by finish'),
+    ParamSpec('output_file', 'boresight.yaml', 'boresight YAML written by finish',
+              validator=output_file_check()),
     ParamSpec('prior_rpy_deg', [], 'nominal mounting LiDAR -> IMU (roll pitch yaw, deg, '
               'REP-103 fixed axes); empty = find the floor without a prior',
               kind='double_array', validator=_rpy_ok, unit='deg'),
@@ -77,7 +78,7 @@ CLOUD_ASSEMBLER_PARAMS = (
               read_only=True),
     ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
     ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply or .pcd; '
-              'empty = none)'),
+              'empty = none)', validator=output_file_check(allow_empty=True)),
     ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
               minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,

@@ -216,22 +216,21 @@ def solve_line(line: str, imu_to_camera: Optional['np.ndarray'] = None
 
 
 def _solve_main(args):
+    import contextlib
     import json
 
-    from accelcal_ros.errors import InputError
     from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
+    from accelcal_ros.fileio import open_text_lines
 
     # a bad rig file or --imu-to-camera is refused up front; a bad line only skips it
     rig = None if args.rig is None else load_rig(args.rig)
     imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
 
-    try:
-        # bytes that are not UTF-8 spoil only their line (its JSON error), as on stdin
-        stream = sys.stdin if args.input == '-' else open(args.input, errors='replace')
-    except OSError as exc:
-        raise InputError(f'cannot read {args.input}: {exc.strerror}') from None
+    # bytes that are not UTF-8 spoil only their line (its JSON error), as on stdin; a file
+    # must be a regular file (no device or FIFO: '-' is the way to stream)
+    stream = sys.stdin if args.input == '-' else open_text_lines(args.input, 'JSON-lines file')
     status = 0
-    with stream:
+    with contextlib.closing(stream) if args.input != '-' else contextlib.nullcontext():
         for line in stream:
             if not line.strip():
                 continue

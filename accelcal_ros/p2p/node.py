@@ -73,7 +73,8 @@ class P2PNode(Node):
         self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info, qos)
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude, qos)
         self._camera_info_key = None
-        self._counts = {'images': 0, 'poses': 0, 'no_pose': 0, 'ambiguous_resolved': 0}
+        self._counts = {'images': 0, 'poses': 0, 'no_pose': 0, 'ambiguous_resolved': 0,
+                        'attitudes_rejected': 0}
         self._last_reason = 'no image received yet'
         self._logged_reason = None
         self._last_quality = {}
@@ -109,9 +110,18 @@ class P2PNode(Node):
                                    f'{[round(v, 5) for v in msg.d]}')
 
     def _on_attitude(self, msg):
-        with self._lock:
-            results = self.pipeline.add_attitude(stamp_to_seconds(msg.header.stamp),
-                                                 msg.vector.x, msg.vector.y)
+        try:
+            with self._lock:
+                results = self.pipeline.add_attitude(stamp_to_seconds(msg.header.stamp),
+                                                     msg.vector.x, msg.vector.y)
+        except InputError as exc:  # not an attitude (pitch 4 rad, roll 1e300): counted
+            self._counts['attitudes_rejected'] += 1
+            self.get_logger().warning(f'{exc} (rejected so far: '
+                                      f'{self._counts["attitudes_rejected"]})',
+                                      throttle_duration_sec=10.0)
+            self._note('attitude rejected: not finite or outside roll +-pi, pitch +-pi/2 '
+                       '(counted in attitudes_rejected)', log=False)
+            return
         for result in results:
             self._publish(result)
 
@@ -171,12 +181,13 @@ class P2PNode(Node):
         self._last_reason = ''
         self._logged_reason = None
 
-    def _note(self, reason):
+    def _note(self, reason, log=True):
         """Record why there is no pose; log it once per change (not per frame)."""
         self._last_reason = reason
         if reason != self._logged_reason:
             self._logged_reason = reason
-            self.get_logger().warning(f'no pose: {reason}')
+            if log:
+                self.get_logger().warning(f'no pose: {reason}')
             self._publish_diagnostics()
 
     def _publish_diagnostics(self):

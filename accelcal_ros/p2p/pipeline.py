@@ -15,7 +15,7 @@ from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
 from accelcal_ros.camera import CameraModel
 from accelcal_ros.errors import AccelcalError
-from accelcal_ros.frames import rotation_matrix_from_list
+from accelcal_ros.frames import check_attitude, rotation_matrix_from_list
 from accelcal_ros.p2p.beacons import BeaconDetection, detect_beacons, DetectorSettings
 from accelcal_ros.p2p.solver import down_from_roll_pitch, P2PSolution, solve
 from accelcal_ros.rosutil.stamp_sync import StampMatcher
@@ -86,8 +86,15 @@ class P2PPipeline:
         return self.camera_reason or None
 
     def add_attitude(self, stamp_s: float, roll: float, pitch: float) -> List[FrameResult]:
-        """Store an attitude; return the results of images that were waiting for it."""
-        self.attitudes.add('attitude', stamp_s, (float(roll), float(pitch)))
+        """
+        Store an attitude; return the results of images that were waiting for it.
+
+        An attitude that is not one (not finite, roll beyond +-pi, pitch beyond +-pi/2:
+        :func:`~accelcal_ros.frames.attitude_problem`) raises :class:`InputError` and is
+        not stored.
+        """
+        roll, pitch = check_attitude(roll, pitch, f'attitude at {stamp_s:.3f} s')
+        self.attitudes.add('attitude', stamp_s, (roll, pitch))
         if self.pending is None:
             return []
         image_stamp = self.pending[0]

@@ -65,13 +65,14 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
 def read_image(path: PathLike) -> 'np.ndarray':
     """Read an 8-bit image (grey or BGR) with a clear error for unreadable files."""
     from accelcal_ros.errors import FileFormatError
+    from accelcal_ros.fileio import read_image_file
     import cv2
     import numpy as np
     import os
 
     if not os.path.exists(path):
         raise FileFormatError(path, 'image not found')
-    image = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    image = read_image_file(path, cv2.IMREAD_UNCHANGED)
     if image is None:
         raise FileFormatError(path, 'not an image OpenCV can read (PNG, JPEG, ...)')
     if image.dtype != np.uint8:

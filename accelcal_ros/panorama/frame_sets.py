@@ -33,6 +33,7 @@ import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Type
 
 from accelcal_ros.errors import AccelcalError
+from accelcal_ros.frames import attitude_problem
 from accelcal_ros.rosutil.stamp_sync import StampMatcher
 
 JUMP_THRESHOLD_S = 2.0
@@ -112,6 +113,8 @@ class FrameSetPolicy:
         """One line on the state of the stitching (``'publishing'`` when all is well)."""
         self.time_jumps = 0
         """Time jumps detected so far (each reset the policy)."""
+        self.rejected_attitudes = 0
+        """Attitudes refused so far (not finite, or outside roll +-pi, pitch +-pi/2)."""
         self.last_jump = ''
         """The latest time jump: stream, size and stamp ('' before the first)."""
         self._last_jump_log = -math.inf
@@ -170,11 +173,14 @@ class FrameSetPolicy:
 
     def add_attitude(self, stamp_s: float, roll_rad: float, pitch_rad: float,
                      now_s: float) -> bool:
-        """Store an attitude (rad); False (said once) if it is not finite."""
-        if not (math.isfinite(roll_rad) and math.isfinite(pitch_rad)):
-            self._warn_once('nan_attitude', f'attitude rejected: roll={roll_rad}, '
-                            f'pitch={pitch_rad} is not finite; the last good attitude stays '
-                            'in use (reported once)')
+        """Store an attitude (rad); False (counted, said once) if it is not one."""
+        problem = attitude_problem(roll_rad, pitch_rad)
+        if problem:
+            with self._lock:
+                self.rejected_attitudes += 1
+            self._warn_once('bad_attitude', f'attitude rejected: {problem}; the last good '
+                            'attitude stays in use (reported once, counted in /diagnostics '
+                            'as rejected_attitudes)')
             return False
         with self._lock:
             self._check_jump('attitude', 'attitude', stamp_s, now_s)

@@ -13,7 +13,8 @@ Subscribes:
   The subscriptions are raw: the pixels are numpy views on the received buffer, copied
   once, into the mosaic.
 * ``attitude`` (geometry_msgs/Vector3Stamped: x = roll, y = pitch, rad, REP-103), as
-  published by the ``attitude`` node; NaN or infinite values are rejected.
+  published by the ``attitude`` node; NaN, infinite and out-of-range values (roll beyond
+  +-pi, pitch beyond +-pi/2) are rejected and counted (``rejected_attitudes``).
 
 Publishes ``panorama`` (sensor_msgs/Image, reliable, depth 2; serialized directly from
 the render buffer, skipped while nobody subscribes) stamped with the newest camera frame
@@ -303,6 +304,7 @@ class StitcherNode(Node):
             KeyValue(key='lookup_rebuilds', value=str(self.stitcher.rebuild_count)),
             KeyValue(key='last_rebuild_ms', value=f'{1e3 * self.stitcher.last_rebuild_s:.1f}'),
             KeyValue(key='time_jumps', value=str(policy.time_jumps)),
+            KeyValue(key='rejected_attitudes', value=str(policy.rejected_attitudes)),
             KeyValue(key='last_time_jump', value=policy.last_jump or 'none'),
             KeyValue(key='last_error', value=self._error or 'none'),
         ]

@@ -23,6 +23,7 @@ import struct
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type
 
 from accelcal_ros.errors import AccelcalError, FileFormatError, InputError
+from accelcal_ros.fileio import check_regular_file, record_input, SIZE_LIMITS
 from accelcal_ros.recording.progress import Progress
 
 BAG_SUFFIXES = ('.bag', '.mcap', '.db3')
@@ -116,7 +117,9 @@ def _storage_path(path: Path) -> Tuple[Path, List[str]]:
         if path.suffix.lower() not in BAG_SUFFIXES:
             raise FileFormatError(path, f'not a bag: expected a rosbag2 directory or a file '
                                   f'ending in {", ".join(BAG_SUFFIXES)}')
+        check_regular_file(path, 'bag file')
         return path, []
+    _check_bag_directory(path)
     if (path / 'metadata.yaml').exists():
         return path, []
     files = sorted(c for c in path.iterdir() if c.suffix in _STORAGE_SUFFIXES)
@@ -128,6 +131,21 @@ def _storage_path(path: Path) -> Tuple[Path, List[str]]:
                               f'storage files ({", ".join(f.name for f in files)}): restore '
                               'metadata.yaml (ros2 bag reindex) or pass one file')
     return files[0], [f'{path}: no metadata.yaml; reading {files[0].name} alone']
+
+
+def _check_bag_directory(path: Path) -> None:
+    """Refuse a bag directory whose metadata or storage files are not regular files."""
+    try:
+        entries = [c for c in path.iterdir()
+                   if c.name == 'metadata.yaml' or c.suffix.lower() in _STORAGE_SUFFIXES
+                   or c.name.endswith(('.mcap.zstd', '.db3.zstd'))]
+    except OSError as exc:
+        raise FileFormatError(path, f'cannot list the bag directory: {exc.strerror}') from None
+    for entry in entries:
+        info = check_regular_file(entry, 'file of the bag')
+        if entry.name == 'metadata.yaml' and info.st_size > SIZE_LIMITS['yaml']:
+            raise FileFormatError(entry, f'larger than the {SIZE_LIMITS["yaml"] // 2**20} MiB '
+                                  "a bag's metadata.yaml may have; not a rosbag2 metadata file")
 
 
 def _reason(exc: BaseException) -> str:
@@ -147,6 +165,7 @@ class BagReader:
         self.path = Path(path)
         self.stamp = stamp
         storage, self.notes = _storage_path(self.path)
+        record_input(self.path)
         ros1 = storage.suffix.lower() == '.bag'
         store = Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY
         self.format = 'ros1' if ros1 else ('mcap' if self._is_mcap(storage) else 'sqlite3')

@@ -12,6 +12,7 @@ import os
 from typing import Dict, List, Optional, Tuple
 
 from accelcal_ros.errors import FileFormatError, InputError
+from accelcal_ros.fileio import read_image_file
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.recording import load_recording
 from accelcal_ros.sensor.stillness import still_segments, StillnessThresholds
@@ -73,7 +74,7 @@ def scan_directory(directory: str, reference: Optional[str] = None) -> Dataset:
 
 def read_grey(path: str) -> np.ndarray:
     """Read an image as 8-bit grey; FileFormatError if it cannot be decoded."""
-    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    image = read_image_file(path, cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise FileFormatError(path, 'cannot be read as an image (corrupt or not a PNG)')
     return image

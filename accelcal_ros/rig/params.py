@@ -1,7 +1,7 @@
 """Parameters of the ``rig_calibration`` node (pure specifications)."""
 from typing import List, Optional
 
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.paramspec import output_file_check, ParamSpec
 from accelcal_ros.rig.board import parse_board_size
 
 
@@ -32,7 +32,7 @@ RIG_CALIBRATION_PARAMS = (
     ParamSpec('capture_dir', 'rig_capture', 'directory the poses are written to '
               '(poseNN/<camera>.png, poseNN/imu.csv)', read_only=True),
     ParamSpec('output_file', 'rig.yaml', 'rig file written by finish (report and plot '
-              'beside it)'),
+              'beside it)', validator=output_file_check()),
     ParamSpec('reference', '', 'reference camera (empty: the first name)'),
     ParamSpec('calibration_file', '', 'accelerometer calibration applied to the IMU '
               '(empty = none)', read_only=True),

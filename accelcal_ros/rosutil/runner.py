@@ -18,9 +18,13 @@ Errors a user can cause at start-up (bad parameter, missing device, unreadable f
 :class:`~accelcal_ros.errors.AccelcalError` (rclpy's parameter exceptions are turned
 into one): they are logged as one FATAL line through the node's logger (so they also
 reach ``/rosout``), or through a logger named after the executable when the node does not
-exist yet, and the process exits with status 1 instead of printing a traceback.
+exist yet, and the process exits with status 1 instead of printing a traceback. rcl's
+own errors about the command line (``-p model:=``, ``--params-file /missing.yaml``) are
+one such line too (:func:`rcl_argument_error`).
 """
+import contextlib
 import os
+import re
 import signal
 import sys
 import time
@@ -179,6 +183,61 @@ def report_fatal(node: Optional[Node], message: str) -> None:
         print(f'[{name or _executable_name()}] error: {message}', file=sys.stderr, flush=True)
 
 
+_RCL_WHERE = re.compile(r',? at /\S+?\.c:\d+')
+
+
+def rcl_argument_error(exc: BaseException) -> AccelcalError:
+    """
+    Return rcl's error about the command line (``--ros-args``) as one clear line.
+
+    rcl's text (``failed to initialize rcl: Couldn't parse parameter override rule:
+    '-p model:='. Error: error not set, at .../arguments.c:352``) loses its source
+    locations and empty details and gains how the arguments are written.
+    """
+    text = ' '.join(str(exc).split())
+    text = _RCL_WHERE.sub('', text)
+    text = text.replace('. Error: error not set', '').replace('failed to initialize rcl: ', '')
+    return AccelcalError(f'bad command-line arguments: {text.rstrip(". ")} (write '
+                         '--ros-args -p name:=value, -r from:=to, --params-file FILE.yaml '
+                         'with an existing YAML file)')
+
+
+def _rcl_init(args: Sequence[str]) -> None:
+    """``rclpy.init`` whose argument errors (RCLError) become one AccelcalError line."""
+    from rclpy.signals import SignalHandlerOptions
+
+    quiet = _quiet_rcl_logger()  # rcl's own "Failed to parse global arguments" line
+    try:
+        rclpy.init(args=list(args), signal_handler_options=SignalHandlerOptions.NO)
+    except _rcl_error() as exc:
+        raise rcl_argument_error(exc) from None
+    finally:
+        quiet()
+
+
+def _quiet_rcl_logger() -> Callable[[], None]:
+    """Silence the ``rcl`` logger below FATAL; return the function that restores it."""
+    from rclpy.logging import get_logger_effective_level, LoggingSeverity, set_logger_level
+
+    try:
+        level = get_logger_effective_level('rcl')
+        set_logger_level('rcl', LoggingSeverity.FATAL)
+    except Exception:  # noqa: B902 - logging not ready: rcl's line stays, harmless
+        return lambda: None
+
+    def restore() -> None:  # unless --log-level set rcl's level during init
+        with contextlib.suppress(Exception):
+            if get_logger_effective_level('rcl') == LoggingSeverity.FATAL:
+                set_logger_level('rcl', level)
+    return restore
+
+
+def _rcl_error() -> type:
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    return rclpy_implementation.RCLError
+
+
 def _close(node: Node, built: bool) -> None:
     if built:
         close = getattr(node, 'close', None)
@@ -200,8 +259,6 @@ def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
     old interface). ``threads`` is the MultiThreadedExecutor's thread count. A node logs;
     it never draws the offline commands' progress bars (``ACCELCAL_PROGRESS=0`` unless set).
     """
-    from rclpy.signals import SignalHandlerOptions
-
     os.environ.setdefault('ACCELCAL_PROGRESS', '0')
 
     default = executor or ('single' if threads == 1 else 'multi')
@@ -213,8 +270,7 @@ def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
     code = 0
     try:
         kind = executor_kind(default)
-        rclpy.init(args=list(args) if args is not None else sys.argv,
-                   signal_handler_options=SignalHandlerOptions.NO)
+        _rcl_init(list(args) if args is not None else sys.argv)
         node = node_factory()
         built = True
         spinner, kind = make_executor(kind, threads)

@@ -12,6 +12,10 @@ Keys (vectors in sensor axes x, y, z; readings in g, 1 g = 9.80665 m/s^2):
   package; ``captures_g`` (mean reading of each position) and ``residuals_g``;
 * ``created``: UTC time.
 
+:data:`SCHEMA` lists every key with its type; ``model``, ``scale``, ``bias`` (and
+``misalignment`` for ``model: full``) are required, and anything else (an unknown key or
+``format`` version, ``true`` where a number belongs) is refused.
+
 :func:`load_sensor_model` reads it back as a
 :class:`~accelcal_ros.sensor.model.SensorModel`; a missing, truncated or
 wrong-shaped file raises :class:`~accelcal_ros.errors.FileFormatError`, and so does a
@@ -27,7 +31,7 @@ import datetime
 from typing import Any, Optional
 
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic, yaml_number
 from accelcal_ros.sensor.model import MODELS, SensorModel
 import numpy as np
 
@@ -107,21 +111,23 @@ class CalibrationRecord:
     data: dict
 
 
+def _is_number(value: Any) -> bool:
+    """Return whether ``value`` is a YAML number (a bool is not: :func:`yaml_number`)."""
+    return yaml_number(value) is not None
+
+
 def _vector(path: str, data: dict, key: str, required: bool = True,
             default: Optional[np.ndarray] = None) -> np.ndarray:
     if key not in data or data[key] is None:
         if required:
             raise FileFormatError(path, f'missing key "{key}" (a calibration file needs '
-                                  'model, scale and bias; was it truncated?)')
+                                  'model, scale and bias, and misalignment for the full model; '
+                                  'was it truncated?)')
         return np.asarray(default, dtype=float)
     value = data[key]
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise FileFormatError(path, f'"{key}" must be a list of 3 numbers, got {value!r}') \
-            from None
-    if arr.shape != (3,):
+    if not isinstance(value, list) or len(value) != 3 or not all(map(_is_number, value)):
         raise FileFormatError(path, f'"{key}" must be a list of 3 numbers, got {value!r}')
+    arr = np.array([yaml_number(v) for v in value], dtype=float)
     if not np.all(np.isfinite(arr)):
         raise FileFormatError(path, f'"{key}" contains NaN or infinity: {value!r}; '
                               'recalibrate or fix the file')
@@ -133,15 +139,96 @@ def _vector(path: str, data: dict, key: str, required: bool = True,
     return arr
 
 
+def _number_or_none(value: Any) -> bool:
+    return value is None or _is_number(value)
+
+
+def _number_list(value: Any) -> bool:
+    return isinstance(value, list) and all(map(_is_number, value))
+
+
+def _text(value: Any) -> bool:
+    return isinstance(value, str)
+
+
+def _created(value: Any) -> bool:  # written quoted; a hand-written date parses as one
+    return isinstance(value, (str, datetime.date))
+
+
+def _index_list(value: Any) -> bool:
+    return isinstance(value, list) and all(
+        isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value)
+
+
+def _captures(value: Any) -> bool:
+    return isinstance(value, list) and all(
+        isinstance(v, list) and len(v) == 3 and all(map(_is_number, v)) for v in value)
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+SCHEMA = {
+    'format': ('the string "' + FORMAT + '"', _text),
+    'model': (f'one of {", ".join(MODELS)}', _text),
+    'scale': ('3 numbers', None),
+    'bias': ('3 numbers (g)', None),
+    'misalignment': ('3 numbers (rad)', None),
+    'scale_std': ('3 numbers', None),
+    'bias_std': ('3 numbers (g)', None),
+    'misalignment_std': ('3 numbers (rad)', None),
+    'residual_rms_g': ('a number or null', _number_or_none),
+    'holdout_rms_g': ('a number or null', _number_or_none),
+    'positions': ('a non-negative integer', _count),
+    'dropped_positions': ('a list of position indices', _index_list),
+    'condition_number': ('a number or null', _number_or_none),
+    'predicted_tilt_error_deg': ('a number or null', _number_or_none),
+    'units': ('text', _text),
+    'equation': ('text', _text),
+    'created': ('a UTC time', _created),
+    'captures_g': ('a list of [x, y, z] (g)', _captures),
+    'residuals_g': ('a list of numbers (g)', _number_list),
+}
+"""Every key a calibration file may hold: ``(what it must be, check)`` (the vectors are
+checked by ``_vector``). Required: ``model``, ``scale``, ``bias``, and ``misalignment`` for
+``model: full``; ``format`` when present must be :data:`FORMAT`. Any other key is refused
+(a misspelt ``misalignement`` would otherwise read as zero misalignment)."""
+
+
+def _check_schema(path: str, data: dict) -> None:
+    unknown = sorted(str(k) for k in data if k not in SCHEMA)
+    if unknown:
+        raise FileFormatError(path, f'unknown key(s) {", ".join(unknown)}; a calibration file '
+                              f'holds only {", ".join(SCHEMA)} (misspelt?)')
+    for key, (what, check) in SCHEMA.items():
+        if check is not None and key in data and not check(data[key]):
+            raise FileFormatError(path, f'"{key}" must be {what}, got {data[key]!r}')
+    if 'format' in data and data['format'] != FORMAT:
+        raise FileFormatError(path, f'unknown format {data["format"]!r}: this version reads '
+                              f'"{FORMAT}" (written by a newer accelcal_ros? update it)')
+
+
 def load_calibration(path: str) -> CalibrationRecord:
-    """Return the :class:`CalibrationRecord` in ``path``; FileFormatError if it is unusable."""
+    """
+    Return the :class:`CalibrationRecord` in ``path``; FileFormatError if it is unusable.
+
+    The file must follow :data:`SCHEMA`: ``model``, ``scale`` and ``bias`` are required, a
+    ``full`` model needs its ``misalignment``, numbers are numbers (``true`` is not 1.0),
+    an unknown ``format`` or key is refused.
+    """
     data = load_yaml_mapping(path, 'calibration file')
-    model = data.get('model', 'full' if 'misalignment' in data else 'diagonal')
+    _check_schema(path, data)
+    if 'model' not in data:
+        raise FileFormatError(path, f'missing key "model" ({" or ".join(MODELS)}); was the '
+                              'file truncated?')
+    model = data['model']
     if model not in MODELS:
         raise FileFormatError(path, f'"model" must be one of {", ".join(MODELS)}, got {model!r}')
     scale = _vector(path, data, 'scale')
     bias = _vector(path, data, 'bias')
-    misalignment = _vector(path, data, 'misalignment', required=False, default=np.zeros(3))
+    misalignment = _vector(path, data, 'misalignment', required=model == 'full',
+                           default=np.zeros(3))
     if model == 'diagonal' and np.any(misalignment != 0.0):
         raise FileFormatError(path, 'a diagonal model cannot have a non-zero misalignment')
     try:
@@ -150,11 +237,8 @@ def load_calibration(path: str) -> CalibrationRecord:
         raise FileFormatError(path, str(exc)) from None
     zeros = np.zeros(3)
     predicted = data.get('predicted_tilt_error_deg')
-    try:
-        predicted = float(predicted) if predicted is not None else float('nan')
-    except (TypeError, ValueError):
-        raise FileFormatError(path, f'"predicted_tilt_error_deg" must be a number, '
-                              f'got {predicted!r}') from None
+    number = yaml_number(predicted)  # a number (SCHEMA) or None
+    predicted = float('nan') if number is None else number
     low, high = PREDICTED_TILT_ERROR_RANGE_DEG
     if np.isfinite(predicted) and not low <= predicted <= high or np.isinf(predicted):
         raise FileFormatError(path, f'"predicted_tilt_error_deg" = {predicted!r} is outside '

@@ -110,10 +110,17 @@ def test_p2p_node_publishes_poses_from_rendered_images(graph):
     status = [s for m in diag.wait_for(1)[-1:] for s in m.status if s.name.startswith('p2p')]
     assert status
 
-    # Bad input keeps the node alive with a reason: wrong encoding, NaN attitude, no blobs.
+    # Bad input keeps the node alive with a reason: wrong encoding, attitudes that are not
+    # one (NaN, pitch 4 rad, roll 1e300: no pose from them), no blobs.
     wait_for_reason(diag, 'unsupported image encoding', probe,
                     ((image, roll, pitch), {'encoding': '16UC1'}))
-    wait_for_reason(diag, 'NaN', probe, ((image, float('nan'), pitch), {}))
+    for bad in ((float('nan'), pitch), (roll, 4.0), (1e300, pitch)):  # refused, counted
+        diag.clear()
+        wait_for_reason(diag, 'attitude rejected', probe, ((image, *bad), {}))
+    counts = [int(kv.value) for m in diag.snapshot()[0] for s in m.status
+              for kv in s.values if kv.key == 'attitudes_rejected']
+    assert max(counts) >= 3
+    assert 'is not finite (rejected so far: 1)' in proc.output()  # logged, throttled
     wait_for_reason(diag, 'no pixel above threshold', probe,
                     ((np.zeros_like(image), roll, pitch), {}))
     assert proc.proc.poll() is None

@@ -89,9 +89,12 @@ def test_missing_camera_info_and_bad_camera_info():
 def test_nan_attitude_and_no_emitters():
     pipe = ready_pipeline()
     image, *_, roll, pitch = frame()
-    pipe.add_attitude(10.0, float('nan'), pitch)
-    [result] = pipe.add_image(10.0, 'cam', image)
-    assert result.solution is None and 'NaN' in result.reason
+    with pytest.raises(InputError, match='not finite'):  # refused where it enters
+        pipe.add_attitude(10.0, float('nan'), pitch)
+    with pytest.raises(InputError, match='outside roll'):
+        pipe.add_attitude(10.0, roll, 4.0)
+    [result] = pipe.add_image(10.0, 'cam', image)  # nothing was stored
+    assert result.solution is None and 'no attitude received yet' in result.reason
     pipe.add_attitude(11.0, roll, pitch)
     [result] = pipe.add_image(11.0, 'cam', np.zeros((480, 640), np.uint8))
     assert 'no pixel above threshold' in result.reason

@@ -58,24 +58,24 @@ def test_previous_file_kept_as_backup(tmp_path, result):
 @pytest.mark.parametrize('text, reason', [
     (None, 'not found'),
     ('', 'mapping'),
-    ('model: full\nscale: [0.9, 0.9, 0.9]\n', 'missing key "bias"'),
-    ('model: full\nscale: [0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" must be a list of 3'),
-    ('model: full\nscale: [0.9, 0.9, .nan]\nbias: [0, 0, 0]\n', 'NaN'),
-    ('model: full\nscale: [0.9, -0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
-    ('model: full\nscale: [1e-300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
-    ('model: full\nscale: [1e300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
-    ('model: full\nscale: [1, 1, 1]\nbias: [0, 1e300, 0]\n', '"bias" .* outside'),
+    ('model: diagonal\nscale: [0.9, 0.9, 0.9]\n', 'missing key "bias"'),
+    ('model: diagonal\nscale: [0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" must be a list of 3'),
+    ('model: diagonal\nscale: [0.9, 0.9, .nan]\nbias: [0, 0, 0]\n', 'NaN'),
+    ('model: diagonal\nscale: [0.9, -0.9, 0.9]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: diagonal\nscale: [1e-300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: diagonal\nscale: [1e300, 1, 1]\nbias: [0, 0, 0]\n', '"scale" .* outside'),
+    ('model: diagonal\nscale: [1, 1, 1]\nbias: [0, 1e300, 0]\n', '"bias" .* outside'),
     ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nmisalignment: [0, 2, 0]\n',
      '"misalignment" .* outside'),
-    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nbias_std: [.nan, 0, 0]\n',
+    ('model: diagonal\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nbias_std: [.nan, 0, 0]\n',
      '"bias_std" contains NaN'),
-    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: -1\n',
+    ('model: diagonal\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: -1\n',
      '"predicted_tilt_error_deg" .* outside'),
-    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: .inf\n',
+    ('model: diagonal\nscale: [1, 1, 1]\nbias: [0, 0, 0]\npredicted_tilt_error_deg: .inf\n',
      '"predicted_tilt_error_deg" .* outside'),
-    ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [a, b, c]\n', '"bias" must be'),
+    ('model: diagonal\nscale: [0.9, 0.9, 0.9]\nbias: [a, b, c]\n', '"bias" must be'),
     ('model: cubic\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n', 'one of'),
-    ('model: full\nscale: [0.9, 0.9, 0.9]\nbias: [0.1, 0.2', 'not valid YAML'),
+    ('model: diagonal\nscale: [0.9, 0.9, 0.9]\nbias: [0.1, 0.2', 'not valid YAML'),
 ])
 def test_bad_files_raise_file_format_error(tmp_path, text, reason):
     path = tmp_path / 'calib.yaml'
@@ -93,3 +93,45 @@ def test_truncated_real_file_rejected(tmp_path, result):
     path.write_text(text[:text.index('bias:') + 12])
     with pytest.raises(FileFormatError):
         load_sensor_model(path)
+
+
+_GOOD = 'model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\nmisalignment: [0, 0, 0]\n'
+
+
+@pytest.mark.parametrize('text, reason', [
+    ('model: full\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n', 'missing key "misalignment"'),
+    ('model: full\nscale: [true, true, true]\nbias: [0, 0, 0]\nmisalignment: [0, 0, 0]\n',
+     '"scale" must be a list of 3 numbers'),
+    (_GOOD.replace('bias: [0, 0, 0]', 'bias: [false, 0, 0]'), '"bias" must be a list of 3'),
+    ('format: accelcal_ros/calibration 2\n' + _GOOD, 'unknown format'),
+    ('format: 1\n' + _GOOD, '"format" must be'),
+    (_GOOD + 'misalignement: [0.01, 0, 0]\n', 'unknown key.*misalignement'),
+    (_GOOD + 'positions: true\n', '"positions" must be a non-negative integer'),
+    (_GOOD + 'predicted_tilt_error_deg: yes\n', '"predicted_tilt_error_deg" must be'),
+    (_GOOD + 'captures_g: [[1, 0]]\n', '"captures_g" must be'),
+    ('scale: [1, 1, 1]\nbias: [0, 0, 0]\n', 'missing key "model"'),
+    ('model: [full]\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n', '"model" must be one of'),
+    (_GOOD + 'residual_rms_g: 1e999999\nscale_std: [1, 1, 99999999999999999999999999]\n',
+     None),
+])
+def test_schema_refuses_what_no_calibration_wrote(tmp_path, text, reason):
+    """Required keys and types (issue 26): a full model without misalignment, bools..."""
+    path = tmp_path / 'calib.yaml'
+    path.write_text(text)
+    if reason is None:  # a huge std is a type-correct value beyond the plausible range
+        with pytest.raises(FileFormatError, match='outside the plausible range'):
+            load_calibration(path)
+        return
+    with pytest.raises(FileFormatError, match=reason):
+        load_calibration(path)
+
+
+def test_diagonal_without_misalignment_and_the_written_keys_are_in_the_schema(tmp_path,
+                                                                              result):
+    """The diagonal model needs none; every key the writer writes is a schema key."""
+    from accelcal_ros.sensor.calibration_file import calibration_dict, FORMAT, SCHEMA
+
+    path = tmp_path / 'calib.yaml'
+    path.write_text(f'format: {FORMAT}\nmodel: diagonal\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n')
+    assert load_calibration(path).model == 'diagonal'
+    assert set(calibration_dict(result)) <= set(SCHEMA)
