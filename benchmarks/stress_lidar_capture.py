@@ -52,7 +52,7 @@ def trial(args, log_dir):
     hogs = []
     try:
         proc = graph.start('lidar_calibration', params=params)
-        graph.call(Trigger, 'lidar_calibration/finish', timeout=20.0)  # the node is up
+        graph.call(Trigger, 'lidar_calibration/start', timeout=20.0)  # the node is up
         pid = proc.proc.pid
         if args.hogs:
             os.setpriority(os.PRIO_PROCESS, pid, 19)

@@ -6,7 +6,8 @@ Subscribes ``imu/data_raw`` (sensor_msgs/Imu, m/s^2, sensor-data QoS). Services
 current still position now), ``calibration/finish`` (fit, save ``output_file``, apply to
 the attitude node), ``calibration/cancel``. Publishes ``calibration/status``
 (diagnostic_msgs/DiagnosticStatus, reliable, transient local) after every capture and
-every ``status_period_s`` while a session runs. The session logic is the pure
+every ``status_period_s`` while a session runs, and ``/diagnostics``: the interface every
+calibration node shares (:mod:`accelcal_ros.session_interface`). The session logic is the pure
 :class:`~accelcal_ros.calibration.session.Calibrator`; parameters:
 :data:`~accelcal_ros.calibration.params.CALIBRATION_PARAMS`.
 
@@ -17,46 +18,41 @@ import os
 
 from accelcal_ros.calibration.params import CALIBRATION_PARAMS, calibrator_config
 from accelcal_ros.calibration.session import Calibrator
-from accelcal_ros.errors import AccelcalError
+from accelcal_ros.errors import AccelcalError, FileWriteError
+from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.calibration_file import save_calibration
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from accelcal_ros.session_interface import OK, SessionProgress, WARN
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
-from std_srvs.srv import Trigger
 
 
 class CalibrationNode(Node):
-    """Thin node around :class:`Calibrator`."""
+    """Thin node around :class:`Calibrator`, behind the shared calibration interface."""
 
     def __init__(self):
         super().__init__('calibration')
-        self.params = ParameterSet(self, CALIBRATION_PARAMS)
+        self.params = ParameterSet(self, CALIBRATION_PARAMS, self._on_change)
         self.calibrator = Calibrator(calibrator_config(self.params.values))
         self.last_result = None
-        self.last_event = ''
         self.saved_path = ''
         self._apply_clients = {}
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
-        # A late joiner (ros2 topic echo --once) gets the latest status only.
-        status_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.status_pub = self.create_publisher(DiagnosticStatus, 'calibration/status',
-                                                status_qos)
-        self.create_service(Trigger, 'calibration/start', self._on_start)
-        self.create_service(Trigger, 'calibration/capture', self._on_capture)
-        self.create_service(Trigger, 'calibration/finish', self._on_finish)
-        self.create_service(Trigger, 'calibration/cancel', self._on_cancel)
-        self.create_timer(self.params['status_period_s'], self._on_timer)
-        self._publish_status()
+        self.session = CalibrationInterface(
+            self, self, 'accelerometer calibration', 'adxl345',
+            'hold the sensor still in a new orientation (auto capture) or call '
+            'calibration/capture while it rests', self.params['status_period_s'])
         self.get_logger().info('ready: call calibration/start, hold the sensor still in a '
                                'dozen orientations, then call calibration/finish')
+
+    def _on_change(self, name, value):
+        if name == 'status_period_s':
+            self.session.set_period(value)
 
     # -- samples ------------------------------------------------------------------------
     def _on_imu(self, msg):
@@ -67,84 +63,50 @@ class CalibrationNode(Node):
         g = STANDARD_GRAVITY_M_S2
         events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
                                             (a.x / g, a.y / g, a.z / g))
-        if not events:
-            return
-        captured = False
         for event in events:
-            self.last_event = event
-            if event.startswith('rejected'):
-                self.get_logger().warning(event)
-            else:
-                self.get_logger().info(event)
-            captured = captured or event.startswith('captured')
-        if captured:
-            progress = self.calibrator.progress()
-            self.get_logger().info(progress.text())
-            self._publish_status()
+            self.session.event(event, 'warning' if event.startswith('rejected') else 'info')
+            if event.startswith('captured'):
+                self.get_logger().info(self.calibrator.progress().text())
 
-    # -- services -----------------------------------------------------------------------
-    def _on_start(self, request, response):
+    # -- the session (backend of CalibrationInterface) -------------------------------------
+    def begin(self):
+        """Open a session with the current parameters."""
         self.calibrator.config = calibrator_config(self.params.values)
-        try:
-            self.calibrator.start()
-        except AccelcalError as exc:
-            return self._refuse(response, exc)
-        return self._accept(
-            response, f'calibration started ({self.calibrator.config.model} model): '
-            f'hold the sensor still in at least {self.calibrator.needed} '
-            'well spread orientations (auto capture '
-            f'{"on" if self.calibrator.config.auto_capture else "off"})',
-            event='session started')
+        self.calibrator.start()
+        return (f'calibration started ({self.calibrator.config.model} model): hold the '
+                f'sensor still in at least {self.calibrator.needed} well spread '
+                'orientations (auto capture '
+                f'{"on" if self.calibrator.config.auto_capture else "off"})')
 
-    def _on_capture(self, request, response):
-        try:
-            cap = self.calibrator.capture_now()
-        except AccelcalError as exc:
-            return self._refuse(response, exc)
-        return self._accept(response, f'captured position {cap.index} ({cap.samples} '
-                            'samples so far; it keeps averaging until the sensor moves)')
+    def capture(self):
+        """Capture the current still dwell (CalibrationError with the reason)."""
+        cap = self.calibrator.capture_now()
+        return (f'captured position {cap.index} ({cap.samples} samples so far; it keeps '
+                'averaging until the sensor moves)')
 
-    def _on_cancel(self, request, response):
-        try:
-            count = self.calibrator.cancel()
-        except AccelcalError as exc:
-            return self._refuse(response, exc)
-        return self._accept(response, f'calibration cancelled; {count} positions discarded')
+    def discard(self):
+        """Drop the session."""
+        return self.calibrator.cancel()
 
-    def _on_finish(self, request, response):
-        try:
-            result = self.calibrator.finish(end=False)
-        except AccelcalError as exc:
-            return self._refuse(response, f'{exc}; the session stays open: capture more '
-                                'positions and call calibration/finish again')
-        path = os.path.expanduser(self.params['output_file'])
+    def output_file(self):
+        """Return the calibration file finish writes (~ expanded)."""
+        return os.path.expanduser(self.params['output_file'])
+
+    def solve(self):
+        """Fit, save the file, apply it to the attitude node; the session then ends."""
+        result = self.calibrator.finish(end=False)
+        path = self.output_file()
         try:
             save_calibration(path, result)
         except (OSError, AccelcalError) as exc:
-            return self._refuse(response, f'fitted, but cannot write {path}: {exc}; set '
-                                'output_file to a writable path and call finish again')
+            raise FileWriteError(f'fitted, but cannot write {path}: {exc}; set output_file '
+                                 'to a writable path') from exc
         self.calibrator.end()
         self.last_result, self.saved_path = result, path
         for warning in result.warnings:
             self.get_logger().warning(warning)
         applied = self._apply_to_attitude(result)
-        return self._accept(response, f'{result.summary()}; saved to {path}; {applied}')
-
-    def _accept(self, response, message, event=None):
-        response.success = True
-        response.message = message
-        self.last_event = event or message
-        self.get_logger().info(message)
-        self._publish_status()
-        return response
-
-    def _refuse(self, response, exc):
-        response.success = False
-        response.message = str(exc)
-        self.last_event = f'refused: {exc}'
-        self.get_logger().warning(f'refused: {exc}')
-        self._publish_status()
-        return response
+        return f'{result.summary()}; saved to {path}; {applied}'
 
     # -- applying the calibration ---------------------------------------------------------
     def _apply_to_attitude(self, result):
@@ -185,55 +147,31 @@ class CalibrationNode(Node):
         if failed:
             self.get_logger().warning(f'"{name}" rejected the calibration: {"; ".join(failed)}')
         else:
-            self.last_event = f'calibration applied to "{name}"'
-            self.get_logger().info(self.last_event)
-            self._publish_status()
+            self.session.event(f'calibration applied to "{name}"')
 
     # -- status -------------------------------------------------------------------------
-    def _on_timer(self):
-        if self.calibrator.active:
-            self._publish_status()
-
-    def _publish_status(self):
+    def progress(self, active):
+        """Return the :class:`SessionProgress` of the session, or of the last result."""
         progress = self.calibrator.progress()
-        status = DiagnosticStatus(name=f'{self.get_name()}: accelerometer calibration',
-                                  hardware_id='adxl345')
-        values = {
-            'active': str(progress.active).lower(),
-            'model': self.calibrator.config.model,
-            'positions': str(progress.positions),
-            'positions_needed': str(progress.needed),
-            'coverage_percent': f'{progress.coverage * 100:.0f}',
-            'predicted_tilt_error_deg': ('' if progress.predicted_tilt_error_deg is None
-                                         else f'{progress.predicted_tilt_error_deg:.4f}'),
-            'hint': '; '.join(progress.hints),
-            'still': str(progress.still).lower(),
-            'rejected_samples': str(progress.rejected_samples),
-            'last_event': self.last_event,
-        }
+        extra = {'model': self.calibrator.config.model, 'still': str(progress.still).lower(),
+                 'rejected_samples': str(progress.rejected_samples)}
         if progress.active:
-            status.level = DiagnosticStatus.OK
-            status.message = progress.text()
-        elif self.last_result is not None:
-            r = self.last_result
-            status.level = DiagnosticStatus.WARN if r.warnings else DiagnosticStatus.OK
-            status.message = f'last calibration: {r.summary()}'
-            values.update({
-                'residual_rms_mg': f'{r.residual_rms_g * 1e3:.3f}',
-                'holdout_rms_mg': ('' if r.holdout_rms_g is None
-                                   else f'{r.holdout_rms_g * 1e3:.3f}'),
-                'fit_positions': str(r.positions),
-                'fit_predicted_tilt_error_deg': f'{r.predicted_tilt_error_deg:.4f}',
-                'scale': ' '.join(f'{v:.6f}' for v in r.sensor_model.scale),
-                'bias_g': ' '.join(f'{v:.6f}' for v in r.sensor_model.bias),
-                'misalignment_rad': ' '.join(f'{v:.6f}' for v in r.sensor_model.misalignment),
-                'output_file': self.saved_path,
-            })
-        else:
-            status.level = DiagnosticStatus.OK
-            status.message = 'idle: call calibration/start'
-        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        self.status_pub.publish(status)
+            return SessionProgress(progress.positions, progress.needed, progress.coverage,
+                                   progress.predicted_tilt_error_deg,
+                                   '; '.join(progress.hints), extra, progress.text())
+        r = self.last_result
+        if r is None:
+            return SessionProgress(0, progress.needed, extra=extra)
+        extra.update({
+            'residual_rms_mg': f'{r.residual_rms_g * 1e3:.3f}',
+            'holdout_rms_mg': '' if r.holdout_rms_g is None else f'{r.holdout_rms_g * 1e3:.3f}',
+            'scale': ' '.join(f'{v:.6f}' for v in r.sensor_model.scale),
+            'bias_g': ' '.join(f'{v:.6f}' for v in r.sensor_model.bias),
+            'misalignment_rad': ' '.join(f'{v:.6f}' for v in r.sensor_model.misalignment)})
+        return SessionProgress(r.positions, progress.needed, None, r.predicted_tilt_error_deg,
+                               'call calibration/start for a new calibration', extra,
+                               f'last calibration: {r.summary()}',
+                               WARN if r.warnings else OK)
 
 
 def main(args=None):

@@ -4,15 +4,16 @@ Parameters of the ``calibration`` node (pure specifications, checked without ROS
 The session settings' defaults are those of :class:`CalibratorConfig` (one source):
 :data:`CONFIG_FIELDS` names the config field of each such parameter.
 """
-import os
 from typing import Any, Mapping
 
 from accelcal_ros.calibration.session import CalibratorConfig
-from accelcal_ros.paramspec import output_file_check, ParamSpec
+from accelcal_ros.outputs import default_output, output_validator
+from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.sensor.model import MODELS
+from accelcal_ros.session_interface import status_period_spec
 
 
-DEFAULT_OUTPUT_FILE = os.path.join('~', '.ros', 'accelcal', 'calibration.yaml')
+DEFAULT_OUTPUT_FILE = default_output('calibration.yaml')
 
 CONFIG_FIELDS = {
     'model': 'model', 'auto_capture': 'auto_capture', 'min_separation_deg': 'min_separation_deg',
@@ -59,12 +60,10 @@ CALIBRATION_PARAMS = (
              'of a captured one.', minimum=5.0, maximum=90.0, unit='deg'),
     ParamSpec('output_file', DEFAULT_OUTPUT_FILE, 'Calibration YAML written by finish '
               '(atomically; the previous file is kept as .bak). ~ is expanded.',
-              validator=output_file_check()),
+              validator=output_validator(('.yaml', '.yml'))),
     ParamSpec('attitude_node', 'attitude', 'Node whose calibration.* parameters finish sets '
               'through its set_parameters service (empty: do not apply).'),
-    ParamSpec('status_period_s', 1.0, 'Period of calibration/status while a session runs '
-              '(it is also published after every capture).', minimum=0.05, maximum=60.0,
-              unit='s'),
+    status_period_spec('calibration'),
 )
 
 

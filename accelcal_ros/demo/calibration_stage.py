@@ -70,10 +70,10 @@ def run(ctx):
         if not messages:
             continue
         v = _values(messages[-1])
-        positions = int(v.get('positions', 0))
-        line = (f'  positions {positions:2d} (need {v.get("positions_needed")})  coverage '
+        positions = int(v.get('captures', 0))
+        line = (f'  positions {positions:2d} (need {v.get("captures_needed")})  coverage '
                 f'{v.get("coverage_percent"):>3} %  predicted roll/pitch p95 '
-                f'{(v.get("predicted_tilt_error_deg") or "n/a"):>6} deg')
+                f'{(v.get("predicted_error_deg") or "n/a"):>6} deg')
         if v.get('hint'):
             line += f'  add: {v["hint"].split(";")[0]}'
         if line != shown:

@@ -69,6 +69,9 @@ def run(ctx):
         'output_file': node_yaml, 'prior_rpy_deg': [0.0, 45.0, 0.0], 'min_static_s': 0.5,
         'min_positions': 3, 'points_reliable': True,
         'clouds_per_capture': PACKETS_PER_REVOLUTION})
+    say('$ ros2 service call /lidar_calibration/start std_srvs/srv/Trigger')
+    started = graph.call(Trigger, 'lidar_calibration/start', timeout=30.0)
+    say(f'  -> success={started.success}: {started.message}')
     picks = [1, 2, 5, 7, 12] if not ctx.quick else [2, 7, 12]
     drive_static_positions(graph.node, protocol, picks, still_s=2.4, say=say, prefix='lidar_demo/')
     response = finish_calibration(graph.call)

@@ -5,27 +5,33 @@ Subscribes ``points`` (sensor_msgs/PointCloud2, LiDAR frame) and ``imu/data_raw`
 (sensor_msgs/Imu, specific force m/s^2, REP-145; gyro used when its covariance[0] != -1),
 best effort (IMU depth ``imu_queue_depth``; scans depth ``queue_depth``, reliable with
 ``points_reliable``), deep enough that a process starved of CPU for seconds catches up on
-its backlog without losing a position. Captures
-a position automatically each time the rig rests (:mod:`accelcal_ros.lidar.capture`), or
-on ``lidar_calibration/capture`` (std_srvs/Trigger). ``lidar_calibration/finish``
-(Trigger) solves the boresight (:func:`accelcal_ros.lidar.boresight.calibrate_boresight`)
-and writes ``output_file`` (YAML: ``R`` row-major LiDAR -> IMU, ``rpy_deg``,
-``per_position_error_deg``, ``holdout_error_deg``, ...). Publishes nothing; the service
-answers carry the result.
+its backlog without losing a position. The
+calibration interface every calibration node shares (:mod:`accelcal_ros.session_interface`):
+``lidar_calibration/start`` opens a session; it captures a position automatically each
+time the rig rests (:mod:`accelcal_ros.lidar.capture`), or on
+``lidar_calibration/capture``; ``lidar_calibration/finish`` solves the boresight
+(:func:`accelcal_ros.lidar.boresight.calibrate_boresight`) and writes ``output_file``
+(YAML: ``R`` row-major LiDAR -> IMU, ``rpy_deg``, ``per_position_error_deg``,
+``holdout_error_deg``, ...); ``lidar_calibration/cancel`` drops the session. Publishes
+``lidar_calibration/status`` (diagnostic_msgs/DiagnosticStatus, transient local) and
+``/diagnostics``. The stillness settings take effect at the next start.
 """
+import os
 import threading
 
-from accelcal_ros.errors import AccelcalError
+from accelcal_ros.errors import AccelcalError, CalibrationError
+from accelcal_ros.lidar.capture import CaptureSettings, StaticCapture
 from accelcal_ros.lidar.params import capture_settings, LIDAR_CALIBRATION_PARAMS as SPECS
+from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.session_interface import OK, SessionProgress, WARN
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, PointCloud2
-from std_srvs.srv import Trigger
 
 
 class LidarCalibrationNode(Node):
@@ -34,17 +40,16 @@ class LidarCalibrationNode(Node):
     def __init__(self):
         super().__init__('lidar_calibration')
         self.params = ParameterSet(self, SPECS, self._on_change)
-        from accelcal_ros.lidar.capture import CaptureSettings, StaticCapture
-
-        model = None
+        self._model = None
         if self.params['calibration_file']:
             from accelcal_ros.sensor.calibration_file import load_sensor_model
 
-            model = load_sensor_model(self.params['calibration_file'])
+            self._model = load_sensor_model(self.params['calibration_file'])
         self._lock = threading.Lock()
         self._settings = CaptureSettings()
         self._apply_settings()
-        self._capture = StaticCapture(self._settings, model)
+        self._capture = None
+        self._last = None
         self._was_still = False
         self._n_logged = 0
         self._warned = set()
@@ -57,10 +62,14 @@ class LidarCalibrationNode(Node):
         points_qos = QoSProfile(depth=self.params['queue_depth'], reliability=reliability,
                                 history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(PointCloud2, 'points', self._on_cloud, points_qos)
-        self.create_service(Trigger, 'lidar_calibration/capture', self._on_capture)
-        self.create_service(Trigger, 'lidar_calibration/finish', self._on_finish)
-        self.get_logger().info('waiting for the rig to rest (auto capture '
-                               f'{"on" if self.params["auto_capture"] else "off"})')
+        self.session = CalibrationInterface(
+            self, self, 'LiDAR-IMU boresight calibration', 'lidar+imu',
+            'rest the rig with the floor in view (auto capture) or call '
+            'lidar_calibration/capture while it rests', self.params['status_period_s'])
+        self.get_logger().info('ready: call lidar_calibration/start, rest the rig in '
+                               f'{self.params["min_positions"]} or more tilts (auto capture '
+                               f'{"on" if self.params["auto_capture"] else "off"}), then call '
+                               'lidar_calibration/finish')
 
     def _apply_settings(self, values=None):
         p = dict(self.params.values)
@@ -70,6 +79,8 @@ class LidarCalibrationNode(Node):
     def _on_change(self, name, value):
         with self._lock:
             self._apply_settings({name: value})
+        if name == 'status_period_s':
+            self.session.set_period(value)
 
     def _warn_once(self, key, text):
         if key not in self._warned:
@@ -87,6 +98,8 @@ class LidarCalibrationNode(Node):
             self._warn_once('imu_nan', 'IMU sample with NaN ignored')
             return
         with self._lock:
+            if self._capture is None:
+                return
             still = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel, gyro)
             new = self._new_positions()
             backwards = self._capture.out_of_order
@@ -100,6 +113,8 @@ class LidarCalibrationNode(Node):
             self._log_capture(pos)
 
     def _on_cloud(self, msg):
+        if self._capture is None:
+            return
         try:
             cloud = pointcloud2_to_array(msg)
             pts = np.stack([cloud['x'], cloud['y'], cloud['z']], axis=1).astype(float)
@@ -107,6 +122,8 @@ class LidarCalibrationNode(Node):
             self._warn_once('cloud', f'unusable PointCloud2 ignored: {exc}')
             return
         with self._lock:
+            if self._capture is None:
+                return
             self._capture.add_cloud(stamp_to_seconds(msg.header.stamp), pts)
             new = self._new_positions()
         for pos in new:
@@ -117,24 +134,48 @@ class LidarCalibrationNode(Node):
         self._n_logged = len(self._capture.positions)
         return new
 
-    def _log_capture(self, pos):
+    def _captured_text(self, pos):
         g = pos.gravity_m_s2
-        self.get_logger().info(f'captured {pos.name}: {len(pos.points)} points, gravity '
-                               f'[{g[0]:.3f}, {g[1]:.3f}, {g[2]:.3f}] m/s^2 '
-                               f'({len(self._capture.positions)} positions)')
+        return (f'captured {pos.name}: {len(pos.points)} points, gravity '
+                f'[{g[0]:.3f}, {g[1]:.3f}, {g[2]:.3f}] m/s^2 '
+                f'({self._n_logged} positions)')
 
-    def _on_capture(self, request, response):
+    def _log_capture(self, pos):
+        self.session.event(self._captured_text(pos))
+
+    # -- the session (backend of CalibrationInterface) -------------------------------------
+    def begin(self):
+        """Open a session: a fresh capture with the current settings."""
+        with self._lock:
+            self._apply_settings()
+            self._capture = StaticCapture(self._settings, self._model)
+            self._n_logged = 0
+            self._was_still = False
+        return ('boresight calibration started: rest the rig in '
+                f'{self.params["min_positions"]} or more tilts with the floor in view (auto '
+                f'capture {"on" if self.params["auto_capture"] else "off"})')
+
+    def capture(self):
+        """Capture the current still period (CalibrationError with the reason)."""
         with self._lock:
             pos, reason = self._capture.capture_now()
             self._new_positions()
-        response.success = pos is not None
-        response.message = reason if pos is None else (
-            f'captured {pos.name} ({len(pos.points)} points)')
-        if pos is not None:
-            self._log_capture(pos)
-        return response
+        if pos is None:
+            raise CalibrationError(reason)
+        return self._captured_text(pos)
 
-    def _on_finish(self, request, response):
+    def discard(self):
+        """Drop the session."""
+        with self._lock:
+            capture, self._capture = self._capture, None
+        return len(capture.positions)
+
+    def output_file(self):
+        """Return the boresight file finish writes (~ expanded)."""
+        return os.path.expanduser(self.params['output_file'])
+
+    def solve(self):
+        """Solve the boresight from the session's positions and write output_file."""
         from accelcal_ros.frames import rotation_from_rpy_radians
         from accelcal_ros.lidar.boresight import calibrate_boresight
         from accelcal_ros.lidar.calibrate_dir import report_lines, write_result
@@ -144,31 +185,50 @@ class LidarCalibrationNode(Node):
             positions = list(self._capture.positions)
             p = dict(self.params.values)
         if len(positions) < p['min_positions']:
-            response.success = False
-            response.message = (f'only {len(positions)} positions captured, need '
-                                f'{p["min_positions"]}: rest the rig in more orientations')
-            return response
+            raise CalibrationError(f'only {len(positions)} positions captured, need '
+                                   f'{p["min_positions"]}: rest the rig in more orientations')
         prior = None
         if p['prior_rpy_deg']:
             prior = rotation_from_rpy_radians(*np.radians(p['prior_rpy_deg']))
         search = FloorSearch(distance_threshold_m=p['distance_threshold_m'],
                              max_tilt_deg=p['max_tilt_deg'], max_range_m=p['max_range_m'])
-        try:
-            result = calibrate_boresight(positions, prior, search, p['weighting'])
-            write_result(p['output_file'], result)
-        except (AccelcalError, OSError) as exc:
-            response.success = False
-            response.message = f'calibration failed: {exc}'
-            self.get_logger().error(response.message)
-            return response
+        path = self.output_file()
+        result = calibrate_boresight(positions, prior, search, p['weighting'])
+        write_result(path, result)
         for line in report_lines(result):
             self.get_logger().info(line)
+        with self._lock:
+            self._last, self._capture = result, None
         r, pch, y = result.rpy_deg
-        response.success = True
-        response.message = (f'roll {r:.4f} pitch {pch:.4f} yaw {y:.4f} deg; mean error '
-                            f'{result.mean_error_deg:.4f} deg over {len(result.positions)} '
-                            f'positions; wrote {p["output_file"]}')
-        return response
+        return (f'roll {r:.4f} pitch {pch:.4f} yaw {y:.4f} deg; mean error '
+                f'{result.mean_error_deg:.4f} deg over {len(result.positions)} '
+                f'positions; wrote {path}')
+
+    def progress(self, active):
+        """Return the :class:`SessionProgress` of the session, or of the last result."""
+        needed = self.params['min_positions']
+        with self._lock:
+            capture = self._capture
+            count = len(capture.positions) if capture is not None else 0
+            still = capture.still if capture is not None else False
+        if capture is None:
+            r = self._last
+            if r is None:
+                return SessionProgress(0, needed)
+            roll, pitch, yaw = r.rpy_deg
+            return SessionProgress(
+                len(r.positions), needed, None, 1.96 * float(np.max(r.rpy_std_deg)),
+                'call lidar_calibration/start for a new calibration',
+                {'rpy_deg': f'{roll:.4f} {pitch:.4f} {yaw:.4f}',
+                 'mean_error_deg': f'{r.mean_error_deg:.4f}',
+                 'warnings': '; '.join(r.warnings)},
+                f'last calibration: roll {roll:.4f} pitch {pitch:.4f} yaw {yaw:.4f} deg',
+                WARN if r.warnings else OK)
+        hint = (f'rest the rig in {needed - count} more tilts with the floor in view'
+                if count < needed else 'enough positions: call lidar_calibration/finish '
+                '(more tilts lower the error)')
+        return SessionProgress(count, needed, None, None, hint,
+                               {'still': str(still).lower()})
 
 
 def main(args=None):

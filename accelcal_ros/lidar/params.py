@@ -8,7 +8,9 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 from typing import Any, Dict, Optional
 
 from accelcal_ros.lidar.capture import CaptureSettings
-from accelcal_ros.paramspec import output_file_check, ParamSpec
+from accelcal_ros.outputs import default_output, output_validator
+from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.session_interface import status_period_spec
 
 _CAPTURE = CaptureSettings()
 
@@ -27,8 +29,8 @@ def _rpy_ok(value):
 
 
 LIDAR_CALIBRATION_PARAMS = (
-    ParamSpec('output_file', 'boresight.yaml', 'boresight YAML written by finish',
-              validator=output_file_check()),
+    ParamSpec('output_file', default_output('boresight.yaml'), 'boresight YAML written by '
+              'finish; ~ is expanded', validator=output_validator(('.yaml', '.yml'))),
     ParamSpec('prior_rpy_deg', [], 'nominal mounting LiDAR -> IMU (roll pitch yaw, deg, '
               'REP-103 fixed axes); empty = find the floor without a prior',
               kind='double_array', validator=_rpy_ok, unit='deg'),
@@ -63,6 +65,7 @@ LIDAR_CALIBRATION_PARAMS = (
               maximum=200.0, unit='m'),
     ParamSpec('weighting', 'equal', 'pair weights: equal (paper) or from the noise of each pair',
               choices=('noise', 'equal')),
+    status_period_spec('lidar_calibration'),
 )
 """Every parameter of the ``lidar_calibration`` node (see config/lidar_calibration.yaml)."""
 

@@ -123,8 +123,9 @@ def finish_calibration(call, name='lidar_calibration', patience_s=10.0):
     deadline = time.monotonic() + patience_s
     while True:
         response = call(Trigger, f'{name}/finish', timeout=30.0)
-        if response.success or 'positions captured' not in response.message \
-                or time.monotonic() > deadline:
+        waiting = ('positions captured' in response.message
+                   or 'nothing captured' in response.message)
+        if response.success or not waiting or time.monotonic() > deadline:
             return response
         time.sleep(1.0)
 

@@ -3,29 +3,36 @@ Node ``rig_calibration``: calibrate a camera rig and its IMU mounting live (issu
 
 Like camera_calibration: subscribes ``<camera>/image_raw`` (sensor_msgs/Image) for each
 name in ``cameras`` and ``imu/data_raw`` (sensor_msgs/Imu, m/s^2, REP-145), both best
-effort. A pose is captured automatically each time the rig rests for ``min_still_s``
-with the board in view (:class:`accelcal_ros.rig.capture.RigCapture`), or on
-``rig_calibration/capture`` (std_srvs/Trigger); ``rig_calibration/finish`` (Trigger)
-calibrates the captured poses and writes ``output_file`` (the stitcher's rig file with
-``imu_to_camera``), its report and plot. ``rig_calibration/status`` (std_msgs/String,
-YAML) says per camera how many views and how much of the image they cover, per pair how
-many shared views, and what to do next.
+effort. The calibration interface every calibration node shares
+(:mod:`accelcal_ros.session_interface`): ``rig_calibration/start`` opens a session (poses
+go to ``capture_dir/session_<UTC time>/``); a pose is captured automatically each time
+the rig rests for ``min_still_s`` with the board in view
+(:class:`accelcal_ros.rig.capture.RigCapture`), or on ``rig_calibration/capture``;
+``rig_calibration/finish`` calibrates the session's poses and writes ``output_file`` (the
+stitcher's rig file with ``imu_to_camera``), its report and plot;
+``rig_calibration/cancel`` drops the session. ``rig_calibration/status``
+(diagnostic_msgs/DiagnosticStatus, transient local) and ``/diagnostics`` say per camera
+how many views and how much of the image they cover (``<camera>.views``,
+``<camera>.coverage_percent``), per pair how many shared views
+(``shared_views.<a>-<b>``), and what to do next (``hint``).
 """
+import os
 import threading
+import time
 
-from accelcal_ros.errors import AccelcalError
-from accelcal_ros.fileio import dump_yaml
-from accelcal_ros.rig.params import RIG_CALIBRATION_PARAMS as SPECS
+from accelcal_ros.errors import AccelcalError, CalibrationError, FileWriteError, InputError
+from accelcal_ros.rig.calibrate import MIN_VIEWS_PER_CAMERA
+from accelcal_ros.rig.params import reference_problem, RIG_CALIBRATION_PARAMS as SPECS
+from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
 from accelcal_ros.rosutil.images import image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.session_interface import OK, SessionProgress, WARN
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, Imu
-from std_msgs.msg import String
-from std_srvs.srv import Trigger
 
 
 class RigCalibrationNode(Node):
@@ -33,20 +40,24 @@ class RigCalibrationNode(Node):
 
     def __init__(self):
         super().__init__('rig_calibration')
+        self.get_logger().info('starting: loading the calibration modules')
         self.params = ParameterSet(self, SPECS, self._on_change)
-        from accelcal_ros.rig.board import Board, parse_board_size
-        from accelcal_ros.rig.capture import RigCapture
-
         p = self.params
+        problem = reference_problem(p['reference'], list(p['cameras']))
+        if problem:
+            raise InputError(f'invalid parameter value(s): {problem} (given at start-up)')
+        from accelcal_ros.rig.board import Board, parse_board_size
+
         self._model = None
         if p['calibration_file']:
             from accelcal_ros.sensor.calibration_file import load_sensor_model
 
             self._model = load_sensor_model(p['calibration_file'])
-        board = Board(*parse_board_size(p['board']), p['square_m'])
+        self._board = Board(*parse_board_size(p['board']), p['square_m'])
         self._lock = threading.Lock()
-        self._capture = RigCapture(p['capture_dir'], list(p['cameras']), board,
-                                   p['auto_capture'], p['min_still_s'])
+        self._capture = None
+        self._last = None
+        self._warned = set()
         sensor_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT,
                                 history=HistoryPolicy.KEEP_LAST)
         imu_qos = QoSProfile(depth=2000, reliability=ReliabilityPolicy.BEST_EFFORT,
@@ -55,18 +66,27 @@ class RigCalibrationNode(Node):
             self.create_subscription(Image, f'{name}/image_raw',
                                      lambda msg, cam=name: self._on_image(cam, msg), sensor_qos)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
-        self.create_service(Trigger, 'rig_calibration/capture', self._on_capture)
-        self.create_service(Trigger, 'rig_calibration/finish', self._on_finish)
-        self._status = self.create_publisher(String, 'rig_calibration/status', 10)
-        self.create_timer(p['status_period_s'], self._publish_status)
-        self._warned = set()
+        self.session = CalibrationInterface(
+            self, self, 'camera rig calibration', 'rig ' + ' '.join(p['cameras']),
+            f'show the {p["board"]} board to the cameras and rest the rig (auto capture) '
+            'or call rig_calibration/capture while it rests', p['status_period_s'])
+        self.get_logger().info(f'ready: cameras {", ".join(p["cameras"])}, board '
+                               f'{p["board"]}; call rig_calibration/start, rest the rig with '
+                               'the board in view in a dozen poses, then call '
+                               'rig_calibration/finish')
 
     def _on_change(self, name, value):
+        if name == 'reference':
+            problem = reference_problem(value, list(self.params['cameras']))
+            if problem:
+                raise InputError(problem)
         with self._lock:
-            if name == 'auto_capture':
+            if name == 'auto_capture' and self._capture is not None:
                 self._capture.auto = bool(value)
-            elif name == 'min_still_s':
+            elif name == 'min_still_s' and self._capture is not None:
                 self._capture.min_still_s = float(value)
+        if name == 'status_period_s':
+            self.session.set_period(value)
 
     def _warn_once(self, key, text):
         if key not in self._warned:
@@ -74,13 +94,16 @@ class RigCalibrationNode(Node):
             self.get_logger().warning(text)
 
     def _on_image(self, camera, msg):
+        if self._capture is None:
+            return
         try:
             grey = image_msg_to_array(msg, want='mono8', topic=f'{camera}/image_raw')
         except AccelcalError as exc:
             self._warn_once(f'image_{camera}', f'unusable image ignored: {exc}')
             return
         with self._lock:
-            self._capture.add_image(camera, stamp_to_seconds(msg.header.stamp), grey)
+            if self._capture is not None:
+                self._capture.add_image(camera, stamp_to_seconds(msg.header.stamp), grey)
 
     def _on_imu(self, msg):
         a = msg.linear_acceleration
@@ -89,40 +112,98 @@ class RigCalibrationNode(Node):
             self._warn_once('imu_nan', 'IMU sample with NaN ignored')
             return
         with self._lock:
+            if self._capture is None:
+                return
             name = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel)
+            count = len(self._capture.poses)
         if name:
-            self.get_logger().info(f'captured {name} ({len(self._capture.poses)} poses)')
+            self.session.event(f'captured {name} ({count} poses)')
 
-    def _publish_status(self):
+    # -- the session (backend of CalibrationInterface) -------------------------------------
+    def begin(self):
+        """Open a session: a fresh capture folder session_<UTC time> in capture_dir."""
+        from accelcal_ros.rig.capture import RigCapture
+
+        p = self.params
+        stamp = time.strftime('%Y%m%dT%H%M%S', time.gmtime())
+        folder = os.path.join(os.path.expanduser(p['capture_dir']), f'session_{stamp}')
+        suffix = 1
+        while os.path.exists(folder):
+            suffix += 1
+            folder = os.path.join(os.path.expanduser(p['capture_dir']),
+                                  f'session_{stamp}_{suffix}')
+        try:
+            capture = RigCapture(folder, list(p['cameras']), self._board, p['auto_capture'],
+                                 p['min_still_s'])
+        except OSError as exc:
+            raise FileWriteError(f'cannot create {folder}: {exc}; set capture_dir to a '
+                                 'writable directory') from exc
         with self._lock:
-            status = self._capture.status()
-        self._status.publish(String(data=dump_yaml(status)))
+            self._capture = capture
+        return (f'rig calibration started: poses go to {folder}; rest the rig with the '
+                f'{p["board"]} board in view (auto capture '
+                f'{"on" if p["auto_capture"] else "off"})')
 
-    def _on_capture(self, request, response):
+    def capture(self):
+        """Capture the current still pose (CalibrationError with the reason)."""
         with self._lock:
-            response.success, response.message = self._capture.capture()
-        return response
+            ok, message = self._capture.capture()
+        if not ok:
+            raise CalibrationError(message)
+        return message
 
-    def _on_finish(self, request, response):
+    def discard(self):
+        """Drop the session (its images stay in the session folder)."""
+        with self._lock:
+            capture, self._capture = self._capture, None
+        return len(capture.poses)
+
+    def output_file(self):
+        """Return the rig file finish writes (~ expanded)."""
+        return os.path.expanduser(self.params['output_file'])
+
+    def solve(self):
+        """Calibrate the session's poses, write the rig file, report and plot."""
         from accelcal_ros.rig.report import report_lines, write_outputs
 
         p = dict(self.params.values)
-        try:
-            with self._lock:
-                result = self._capture.finish(p['reference'] or None, self._model)
-            paths = write_outputs(p['output_file'], result)
-        except (AccelcalError, OSError) as exc:
-            response.success = False
-            response.message = f'calibration failed: {exc}'
-            self.get_logger().error(response.message)
-            return response
+        with self._lock:
+            result = self._capture.finish(p['reference'] or None, self._model)
+        paths = write_outputs(self.output_file(), result)
         for line in report_lines(result):
             self.get_logger().info(line)
-        response.success = True
-        response.message = (f'{len(result.cameras)} cameras, rig fit RMS '
-                            f'{result.fit.rms_px:.3f} px, {len(result.warnings)} warnings; '
-                            f'wrote {", ".join(paths)}')
-        return response
+        with self._lock:
+            self._last, self._capture = (result, len(self._capture.poses)), None
+        return (f'{len(result.cameras)} cameras, rig fit RMS {result.fit.rms_px:.3f} px, '
+                f'{len(result.warnings)} warnings; wrote {", ".join(paths)}')
+
+    def progress(self, active):
+        """Return the :class:`SessionProgress` of the session, or of the last result."""
+        with self._lock:
+            capture = self._capture
+            status = capture.status() if capture is not None else None
+        if status is None:
+            if self._last is None:
+                return SessionProgress(0, MIN_VIEWS_PER_CAMERA)
+            result, poses = self._last
+            std = float(np.max(result.fit.rotation_std_deg))
+            return SessionProgress(
+                poses, MIN_VIEWS_PER_CAMERA, None, 1.96 * std,
+                'call rig_calibration/start for a new calibration',
+                {'fit_rms_px': f'{result.fit.rms_px:.3f}',
+                 'warnings': '; '.join(result.warnings)},
+                f'last calibration: {len(result.cameras)} cameras, rig fit RMS '
+                f'{result.fit.rms_px:.3f} px', WARN if result.warnings else OK)
+        cams = status['cameras']
+        extra = {'still': str(status['still']).lower(), 'capture_dir': capture.directory}
+        for cam, v in cams.items():
+            extra[f'{cam}.views'] = str(v['views'])
+            extra[f'{cam}.coverage_percent'] = f'{100 * v["coverage"]:.0f}'
+        for pair, n in status['shared_views'].items():
+            extra[f'shared_views.{pair}'] = str(n)
+        coverage = min(v['coverage'] for v in cams.values()) if cams else 0.0
+        return SessionProgress(status['poses'], MIN_VIEWS_PER_CAMERA, coverage, None,
+                               status['next'], extra)
 
 
 def main(args=None):

@@ -1,8 +1,10 @@
 """Parameters of the ``rig_calibration`` node (pure specifications)."""
 from typing import List, Optional
 
-from accelcal_ros.paramspec import output_file_check, ParamSpec
+from accelcal_ros.outputs import default_output, output_validator
+from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.rig.board import parse_board_size
+from accelcal_ros.session_interface import status_period_spec
 
 
 def _board_ok(value: str) -> Optional[str]:
@@ -29,17 +31,26 @@ RIG_CALIBRATION_PARAMS = (
               validator=_board_ok, read_only=True),
     ParamSpec('square_m', 0.025, 'chessboard square side', minimum=0.001, maximum=1.0,
               unit='m', read_only=True),
-    ParamSpec('capture_dir', 'rig_capture', 'directory the poses are written to '
-              '(poseNN/<camera>.png, poseNN/imu.csv)', read_only=True),
-    ParamSpec('output_file', 'rig.yaml', 'rig file written by finish (report and plot '
-              'beside it)', validator=output_file_check()),
-    ParamSpec('reference', '', 'reference camera (empty: the first name)'),
+    ParamSpec('capture_dir', default_output('rig_capture'), 'directory of the sessions: '
+              'each start makes session_<UTC time>/ in it and writes the poses there '
+              '(poseNN/<camera>.png, poseNN/imu.csv); ~ is expanded',
+              validator=output_validator(directory=True), read_only=True),
+    ParamSpec('output_file', default_output('rig.yaml'), 'rig file written by finish '
+              '(report and plot beside it); ~ is expanded',
+              validator=output_validator(('.yaml', '.yml'))),
+    ParamSpec('reference', '', 'reference camera, one of cameras (empty: the first name)'),
     ParamSpec('calibration_file', '', 'accelerometer calibration applied to the IMU '
               '(empty = none)', read_only=True),
     ParamSpec('auto_capture', True, 'capture a pose each time the rig rests with the board '
               'in view'),
     ParamSpec('min_still_s', 1.0, 'stillness needed before a capture', minimum=0.2,
               maximum=30.0, unit='s'),
-    ParamSpec('status_period_s', 1.0, 'period of the rig_calibration/status message',
-              minimum=0.1, maximum=60.0, unit='s', read_only=True),
+    status_period_spec('rig_calibration'),
 )
+
+
+def reference_problem(reference: str, cameras: List[str]) -> Optional[str]:
+    """Return why ``reference`` is not a camera of the rig (None when it is, or empty)."""
+    if reference and reference not in cameras:
+        return f'reference {reference!r} is not one of the cameras {", ".join(cameras)}'
+    return None

@@ -49,11 +49,11 @@ def test_calibrate_in_a_graph_and_attitude_follows(graph, tmp_path):
         time.sleep(0.5)
         messages, _ = status.snapshot()
         if messages:
-            positions = int(_status_values(messages[-1]).get('positions', 0))
+            positions = int(_status_values(messages[-1]).get('captures', 0))
     assert positions >= 14, f'only {positions} positions captured'
     values = _status_values(status.snapshot()[0][-1])
     assert float(values['coverage_percent']) >= 99.0
-    assert 0.0 < float(values['predicted_tilt_error_deg']) < 0.1
+    assert 0.0 < float(values['predicted_error_deg']) < 0.1
 
     before = dwell_errors_deg(attitude.snapshot()[0], truth.snapshot()[0])
 

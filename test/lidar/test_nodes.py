@@ -26,7 +26,10 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
         'min_positions': 3, 'points_reliable': True,
         'clouds_per_capture': PACKETS_PER_REVOLUTION})
     early = graph.call(Trigger, 'lidar_calibration/finish', timeout=20.0)
-    assert not early.success and 'positions captured' in early.message
+    assert not early.success and 'lidar_calibration/start' in early.message
+    assert graph.call(Trigger, 'lidar_calibration/start').success
+    early = graph.call(Trigger, 'lidar_calibration/finish')
+    assert not early.success and 'nothing captured yet' in early.message
     drive_static_positions(graph.node, protocol, [1, 2, 5, 7, 12], move_s=0.5, still_s=2.4,
                            imu_hz=50.0)
     response = finish_calibration(graph.call)  # asks again while the node works off a backlog
@@ -35,6 +38,9 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
     assert len(data['positions']) >= 3 and len(data['R']) == 9
     assert rotation_angle_deg(load_boresight(out), truth) < 0.1, (out.read_text()
                                                                   + proc.output())
+    not_running = graph.call(Trigger, 'lidar_calibration/capture', timeout=10.0)
+    assert not not_running.success and 'no calibration session' in not_running.message
+    assert graph.call(Trigger, 'lidar_calibration/start').success
     not_still = graph.call(Trigger, 'lidar_calibration/capture', timeout=10.0)
     assert not not_still.success and 'still' in not_still.message
 

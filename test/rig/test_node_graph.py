@@ -6,13 +6,13 @@ from accelcal_ros.rig.render import default_truth, imu_samples, plan_poses, Rend
 from accelcal_ros.rosutil.images import array_to_image_msg
 from accelcal_ros.rosutil.stamps import seconds_to_stamp
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image, Imu
-from std_msgs.msg import Header, String
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
-import yaml
 
 
 def _imu(t, accel):
@@ -35,7 +35,9 @@ def test_rig_calibration_node_captures_reports_and_refuses_early_finish(graph, t
         'cameras': truth.names, 'board': '11x8', 'square_m': 0.025,
         'capture_dir': str(capture_dir), 'output_file': str(tmp_path / 'rig.yaml'),
         'min_still_s': 0.5, 'status_period_s': 0.3})
-    status = graph.collect(String, 'rig_calibration/status', qos=10)
+    status = graph.collect(DiagnosticStatus, 'rig_calibration/status', qos=10)
+    started = graph.call(Trigger, 'rig_calibration/start', timeout=20.0)
+    assert started.success and str(capture_dir) in started.message, started.message
     imu_pub = graph.node.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
     image_pubs = [graph.node.create_publisher(Image, f'{c}/image_raw', qos_profile_sensor_data)
                   for c in truth.names]
@@ -65,14 +67,18 @@ def test_rig_calibration_node_captures_reports_and_refuses_early_finish(graph, t
     latest = {}
     while time.monotonic() < deadline:
         messages = status.snapshot()[0]
-        latest = yaml.safe_load(messages[-1].data) if messages else {}
-        if latest.get('poses', 0) >= 2:
+        latest = {kv.key: kv.value for kv in messages[-1].values} if messages else {}
+        if int(latest.get('captures', 0)) >= 2:
             break
         time.sleep(0.2)
-    assert latest.get('poses') == 2, latest
-    assert sorted(os.listdir(capture_dir)) == ['pose00', 'pose01']
-    views = [latest['cameras'][c]['views'] for c in truth.names]
+    assert latest.get('captures') == '2', latest
+    sessions = os.listdir(capture_dir)
+    assert len(sessions) == 1 and sessions[0].startswith('session_')
+    assert latest['capture_dir'] == str(capture_dir / sessions[0])
+    assert sorted(os.listdir(capture_dir / sessions[0])) == ['pose00', 'pose01']
+    views = [int(latest[f'{c}.views']) for c in truth.names]
     assert views == [sum(i in p.visible for p in poses) for i in range(3)]
-    assert 'show' in latest['next']
+    assert 'show' in latest['hint']
     finish = graph.call(Trigger, 'rig_calibration/finish', timeout=60.0)
-    assert not finish.success and 'need at least 4' in finish.message
+    assert not finish.success and 'need at least' in finish.message
+    assert 'session stays open' in finish.message
