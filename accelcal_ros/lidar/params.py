@@ -9,7 +9,7 @@ from typing import Any, Dict, Optional
 
 from accelcal_ros.lidar.capture import CaptureSettings
 from accelcal_ros.outputs import default_output, output_validator
-from accelcal_ros.paramspec import ParamSpec
+from accelcal_ros.paramspec import output_file_check, ParamSpec
 from accelcal_ros.session_interface import status_period_spec
 
 _CAPTURE = CaptureSettings()
