@@ -43,7 +43,8 @@ def _up(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
 
 def _package(drive: Drive, gyro: bool, odometry: bool,
              settings: Optional[FilterSettings] = None) -> Estimate:
-    filt = AttitudeFilter(SensorModel.identity(), datasheet_noise_std_g(drive.rate_hz),
+    filt = AttitudeFilter(SensorModel.identity(),
+                          tuple(datasheet_noise_std_g(drive.rate_hz).tolist()),
                           settings=settings)
     accel = drive.accel_g.tolist()
     rates = drive.gyro_rad_s.tolist() if gyro else [None] * len(accel)

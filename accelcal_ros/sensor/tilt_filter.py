@@ -60,7 +60,9 @@ over a changing grade looks still) and odometry, when given, says stopped: 20 ms
 means of ``w``, committed only once a still window has passed them (the start of a
 motion never enters), averaged with a memory of ``bias_time_constant_s``. Until the
 first 0.2 s of stillness have given a bias the output is the accelerometer-only
-estimate. Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
+estimate. While the detector says still and the accelerometer agrees, the direction is
+the still average's (the gyro's noise would only add a random walk at rest). Variance:
+per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
 ``s_w`` and bias uncertainty ``s_b``, which grows by ``gyro_bias_drift_rad_s2`` per
 second away from stillness), then ``P = (1 - k)^2 P + k^2 R`` with ``R`` the
 accelerometer's angle variance, plus the squared low-passed innovation while the
@@ -91,6 +93,8 @@ INNOVATION_TIME_CONSTANT_S = 0.1
 BIAS_MIN_BLOCKS = 10
 """20 ms blocks of stillness needed before the gyro bias is known (0.2 s)."""
 MAX_GAP_S = 0.5
+BIAS_INTEGRAL_TIME_CONSTANT_S = 20.0
+"""Moving, accelerometer trusted: the bias follows the innovation with this time constant."""
 """A larger gap between samples restarts the gyro state (s)."""
 BIAS_RATE_LIMIT_RAD_S = 0.01
 """Stillness with a known bias: the mean corrected rate below this (0.57 deg/s). The
@@ -112,6 +116,7 @@ MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it 
              'accelerate'
 MODE_ODOMETRY = 'accelerometer + odometry'
 MODE_GYRO = 'gyro-aided'
+MODE_GYRO_BAD = 'gyro samples unusable (NaN or saturated): accelerometer only'
 MODE_GYRO_WAIT = 'gyro present: waiting for a still moment to learn its bias ' \
                  '(accelerometer only until then)'
 
@@ -339,11 +344,16 @@ class AttitudeFilter:
             shrink = _dema_variance_ratio(a_eff)
         if gyro is not None and bias_known:
             return self._gyro_update(stamp, dt, gyro, (fx, fy, fz), magnitude, accelerating,
-                                     aided_by_odometry, out, shrink, platform_moving)
+                                     aided_by_odometry, out, shrink, platform_moving,
+                                     still and self._still is not None)
         self._up = None   # starts from the still average once the bias is known
+        mode = None
+        if gyro is not None:
+            mode = MODE_GYRO_WAIT
+        elif gyro_rad_s is not None:
+            mode = MODE_GYRO_BAD
         return self._accel_output(stamp, (fx, fy, fz), magnitude, deviation, accelerating,
-                                  still, out, shrink, aided_by_odometry,
-                                  MODE_GYRO_WAIT if gyro is not None else None)
+                                  still, out, shrink, aided_by_odometry, mode)
 
     # -- pieces ---------------------------------------------------------------------------
     def _innovation_norm(self) -> float:
@@ -476,7 +486,7 @@ class AttitudeFilter:
                             accelerating, magnitude)
 
     def _gyro_update(self, stamp, dt, gyro, force, magnitude, accelerating,
-                     aided_by_odometry, out, shrink, platform_moving):
+                     aided_by_odometry, out, shrink, platform_moving, still):
         """Run the complementary filter on the up direction; return its estimate."""
         settings = self.settings
         fx, fy, fz = force
@@ -523,13 +533,26 @@ class AttitudeFilter:
             self._up_n += 1
             k = 0.0 if reject else max(_alpha(dt, settings.gyro_time_constant_s), k_fast,
                                        1.0 / self._up_n if self._up_n < 100 else 0.0)
+            if k > 0.0 and not still and self._up_n >= 100:
+                # Mahony's integral term: a steady innovation is a bias error
+                ki = dt / (BIAS_INTEGRAL_TIME_CONSTANT_S * settings.gyro_time_constant_s)
+                cx, cy, cz = iy * vz - iz * vy, iz * vx - ix * vz, ix * vy - iy * vx
+                b = self._bias
+                self._bias = (b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz)
             vx, vy, vz = vx + k * ex, vy + k * ey, vz + k * ez
+            if still and not reject:
+                # at rest the still average is the best estimate (the gyro's noise would
+                # only add a random walk): the direction is taken from it
+                vx, vy, vz = out
+                self._p = r_var * shrink
+                k = 1.0
             norm = math.sqrt(vx * vx + vy * vy + vz * vz)
             self._up = (vx / norm, vy / norm, vz / norm)
             drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - self._bias_time)
             s_b = self._bias_std + drift
-            s = math.sqrt(self._p + (settings.gyro_noise_std_rad_s * dt) ** 2) + s_b * dt
-            self._p = (1.0 - k) ** 2 * s * s + k * k * r_var
+            if k < 1.0:
+                s = math.sqrt(self._p + (settings.gyro_noise_std_rad_s * dt) ** 2) + s_b * dt
+                self._p = (1.0 - k) ** 2 * s * s + k * k * r_var
             self.rejecting = reject
         vx, vy, vz = self._up
         roll = math.atan2(vy, vz)

@@ -82,7 +82,7 @@ def estimate_series(t_s: ArrayLike, accel_g: ArrayLike, gyro_rad_s: Optional[Arr
         gyro = np.asarray(gyro_rad_s, dtype=float).reshape(-1, 3)
         if gyro.shape[0] != t.size:
             raise InputError(f'{t.size} times for {gyro.shape[0]} gyro samples')
-        rates = gyro.tolist()
+        rates = list(gyro.tolist())
     platform: List[Optional[list]] = [None] * t.size
     moving: List[Optional[bool]] = [None] * t.size
     if odometry is not None:
