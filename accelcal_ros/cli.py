@@ -25,6 +25,7 @@ from accelcal_ros.errors import AccelcalError, InputError
 FEATURE_CLI_MODULES = (
     'accelcal_ros.driver.cli',
     'accelcal_ros.calibration.cli',
+    'accelcal_ros.attitude.cli',
     'accelcal_ros.panorama.cli',
     'accelcal_ros.p2p.cli',
     'accelcal_ros.lidar.cli',

@@ -7,9 +7,22 @@ the input's header (stamp and frame_id):
 * ``attitude`` (geometry_msgs/Vector3Stamped): x = roll, y = pitch, z = 0, rad, REP-103;
 * ``imu/data`` (sensor_msgs/Imu): calibrated linear acceleration (m/s^2), orientation
   with yaw 0 (``Ry(pitch) Rx(roll)``), orientation covariance from the noise and the
-  calibration's uncertainty (roll, pitch; yaw variance ``yaw_variance``), angular velocity
-  covariance[0] = -1 (not provided). While the sensor accelerates (| |f| - 1 g | above
+  calibration's uncertainty (roll, pitch; yaw variance ``yaw_variance``); angular
+  velocity (bias removed) with its covariance when a gyro is used, else covariance[0] =
+  -1 (not provided). While the sensor accelerates (| |f| - 1 g | above
   ``accel_threshold_g``) the last good tilt is held and its covariance inflated.
+
+The estimate is :class:`~accelcal_ros.sensor.tilt_filter.AttitudeFilter`: averaging
+adapted to stillness (``still_time_constant_s`` while still, ``moving_time_constant_s``
+while moving), gyro-aided when angular velocity comes with the samples
+(``angular_velocity_covariance[0] != -1`` in ``imu/data_raw``) or on ``gyro_topic`` (a
+second sensor_msgs/Imu, the newest sample within 50 ms used; its frame must be the
+accelerometer's unless ``gyro_rotation`` says how they relate), odometry-aided with
+``odometry_topic`` (nav_msgs/Odometry; ``lever_arm_m``). ``time_constant_s`` > 0 selects
+the former fixed low-pass instead (accelerometer only). Bad gyro or odometry input is
+not used and is said once, with the reason, and counted in ``/diagnostics``, whose
+``mode`` says what the tilt rests on (accelerometer only on a moving platform: WARN,
+valid only while the platform does not accelerate).
 
 The calibration comes from ``calibration_file`` or from the ``calibration.*`` parameters,
 both settable at run time (``ros2 param set``, or the calibration node's finish). A bad
@@ -35,10 +48,13 @@ from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.calibration_file import load_calibration
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.model import SensorModel
+from accelcal_ros.sensor.odometry_aid import OdometryAid
 from accelcal_ros.sensor.tilt import quaternion_from_roll_pitch, TiltEstimator
+from accelcal_ros.sensor.tilt_filter import AttitudeFilter, FilterSettings, MODE_BLIND
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
@@ -46,6 +62,11 @@ from sensor_msgs.msg import Imu
 
 DIAGNOSTICS_PERIOD_S = 1.0
 """Period of the /diagnostics status and of the check for a missing calibration file (s)."""
+GYRO_MATCH_S = 0.05
+"""A gyro sample from ``gyro_topic`` is used for accelerometer samples this close (s)."""
+FILTER_KEYS = ('still_time_constant_s', 'moving_time_constant_s', 'gyro_time_constant_s',
+               'rejection_deg', 'rejection_timeout_s', 'bias_time_constant_s',
+               'gyro_noise_std_rad_s', 'platform_accel_g')
 
 
 class AttitudeNode(Node):
@@ -55,9 +76,21 @@ class AttitudeNode(Node):
         super().__init__('attitude')
         self.params = ParameterSet(self, ATTITUDE_PARAMS, on_change=self._on_change)
         values = self.params.values
-        self.estimator = TiltEstimator(time_constant_s=values['time_constant_s'],
-                                       accel_threshold_g=values['accel_threshold_g'],
-                                       max_hold_s=values['max_hold_s'])
+        self.legacy = TiltEstimator(time_constant_s=values['time_constant_s'],
+                                    accel_threshold_g=values['accel_threshold_g'],
+                                    max_hold_s=values['max_hold_s'])
+        self.filter = AttitudeFilter(accel_threshold_g=values['accel_threshold_g'],
+                                     max_hold_s=values['max_hold_s'],
+                                     settings=self._filter_settings(values))
+        self.estimator = self.legacy if values['time_constant_s'] > 0 else self.filter
+        self._gyro_rotation = self._rotation(values['gyro_rotation'])
+        self._gyro_sample = None
+        self._gyro_frame_reason = ''
+        self._odometry = None
+        self._odometry_moving = None
+        self._input_problems = {}
+        self._accel_frame = None
+        self._gyro_seen = {'NaN': 0, 'saturated': 0}
         self._pending = {}
         self._rate_dt = None
         self._last_stamp = None
@@ -68,7 +101,7 @@ class AttitudeNode(Node):
         self._skipped = {'NaN': 0, 'zero': 0, 'out of range': 0}
         self._calibration_source = 'calibration.* parameters'
         self._waiting_for_file = ''
-        self.estimator.set_calibration(*self._model_from_values(values))
+        self._set_calibration(*self._model_from_values(values))
         path = values['calibration_file']
         if path and not os.path.exists(os.path.expanduser(path)):
             self._waiting_for_file = path
@@ -96,6 +129,13 @@ class AttitudeNode(Node):
         self._out_imu.orientation_covariance[8] = float(values['yaw_variance'])
         self._fcov_source = None
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
+        if values['gyro_topic']:
+            self.create_subscription(Imu, values['gyro_topic'], self._on_gyro,
+                                     imu_subscription_qos())
+        if values['odometry_topic']:
+            self._odometry = OdometryAid(values['lever_arm_m'])
+            self.create_subscription(Odometry, values['odometry_topic'], self._on_odometry,
+                                     qos_profile_sensor_data)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_timer)
 
     # -- calibration ----------------------------------------------------------------------
@@ -113,7 +153,7 @@ class AttitudeNode(Node):
         record = load_calibration(os.path.expanduser(path))
         tilt_std = record.predicted_tilt_error_deg
         tilt_std_rad = math.radians(tilt_std / 1.96) if math.isfinite(tilt_std) else 0.0
-        self.estimator.set_calibration(record.sensor_model, tilt_std_rad)
+        self._set_calibration(record.sensor_model, tilt_std_rad)
         self._waiting_for_file = ''
         self._calibration_source = f'file {path}'
         self.get_logger().info(
@@ -134,7 +174,7 @@ class AttitudeNode(Node):
                 self._waiting_for_file = ''
                 merged = dict(self.params.values)
                 merged.update(self._pending)
-                self.estimator.set_calibration(*self._model_from_values(merged))
+                self._set_calibration(*self._model_from_values(merged))
                 self._calibration_source = 'calibration.* parameters'
         elif name.startswith('calibration.'):
             merged = dict(self.params.values)
@@ -142,23 +182,60 @@ class AttitudeNode(Node):
             merged[name] = value
             sensor_model, tilt_std = self._model_from_values(merged)
             self._pending[name] = value
-            self.estimator.set_calibration(sensor_model, tilt_std)
+            self._set_calibration(sensor_model, tilt_std)
             self._waiting_for_file = ''
             self._calibration_source = 'calibration.* parameters'
         elif name == 'yaw_variance':
             self._out_imu.orientation_covariance[8] = float(value)
         elif name == 'time_constant_s':
-            self.estimator.time_constant_s = value
-            self.estimator.reset()
-        elif name == 'accel_threshold_g':
-            self.estimator.accel_threshold_g = value
-        elif name == 'max_hold_s':
-            self.estimator.max_hold_s = value
+            self.legacy.time_constant_s = value
+            self.legacy.reset()
+            self.filter.reset()
+            self.estimator = self.legacy if value > 0 else self.filter
+        elif name in ('accel_threshold_g', 'max_hold_s'):
+            setattr(self.legacy, name, value)
+            setattr(self.filter.tilt, name, value)
         elif name == 'noise_std_g':
             if value:
-                self.estimator.set_noise(value)
+                self._set_noise(value)
             self._fixed_noise = bool(value)
             self._noise_rate = None
+        elif name in FILTER_KEYS:
+            merged = dict(self.params.values)
+            merged[name] = value
+            self.filter.set_settings(self._filter_settings(merged))
+        elif name == 'gyro_rotation':
+            self._gyro_rotation = self._rotation(value)
+            self._gyro_frame_reason = ''
+        elif name == 'lever_arm_m' and self._odometry is not None:
+            self._odometry.lever_arm_m = tuple(float(v) for v in value)
+
+    # -- helpers ----------------------------------------------------------------------------
+    @staticmethod
+    def _filter_settings(values):
+        try:
+            return FilterSettings(**{k: float(values[k]) for k in FILTER_KEYS})
+        except AccelcalError as exc:
+            raise InputError(str(exc)) from None
+
+    @staticmethod
+    def _rotation(values):
+        return [float(v) for v in values] if len(values) == 9 else None
+
+    def _set_calibration(self, sensor_model, tilt_std_rad=None):
+        self.legacy.set_calibration(sensor_model, tilt_std_rad)
+        self.filter.set_calibration(sensor_model, tilt_std_rad)
+
+    def _set_noise(self, noise):
+        self.legacy.set_noise(noise)
+        self.filter.set_noise(noise)
+
+    def _problem(self, key, text):
+        """Count a bad gyro/odometry input; say it once per kind."""
+        count = self._input_problems.get(key, 0)
+        self._input_problems[key] = count + 1
+        if not count:
+            self.get_logger().warning(f'{text} (said once; counted in /diagnostics)')
 
     # -- samples ----------------------------------------------------------------------------
     def _update_noise(self, stamp):
@@ -172,7 +249,7 @@ class AttitudeNode(Node):
         rate = 1.0 / self._rate_dt
         if self._noise_rate is None or abs(rate - self._noise_rate) > 0.1 * self._noise_rate:
             self._noise_rate = rate
-            self.estimator.set_noise(datasheet_noise_std_g(rate))
+            self._set_noise(datasheet_noise_std_g(rate))
 
     def _on_imu(self, msg):
         self._received += 1
@@ -186,13 +263,32 @@ class AttitudeNode(Node):
                 f'{[round(x, 6) for x in v["calibration.misalignment"]]} rad')
         a = msg.linear_acceleration
         header = msg.header
+        self._accel_frame = header.frame_id
         stamp = header.stamp.sec + header.stamp.nanosec * 1e-9
         self._update_noise(stamp)
         g = STANDARD_GRAVITY_M_S2
-        est = self.estimator.update(stamp, (a.x / g, a.y / g, a.z / g))
+        estimator = self.estimator
+        if estimator is self.legacy:
+            est = estimator.update(stamp, (a.x / g, a.y / g, a.z / g))
+            gyro = None
+        else:
+            gyro = self._gyro_for(msg, stamp)
+            platform = moving = None
+            odometry = self._odometry
+            if odometry is not None:
+                platform = odometry.accel_g(stamp)
+                moving = self._odometry_moving if platform is not None else None
+            est = estimator.update(stamp, (a.x / g, a.y / g, a.z / g), gyro, platform, moving)
         if est is None:
-            self._skip(self.estimator.last_rejection)
+            self._skip(estimator.last_rejection)
             return
+        if gyro is not None and estimator.gyro_rejections != self._gyro_seen:
+            self._gyro_seen = dict(estimator.gyro_rejections)
+            self.get_logger().warning(
+                'gyro samples not used (NaN, or at the '
+                f'{self.filter.settings.gyro_saturation_rad_s} rad/s limit): {self._gyro_seen}; '
+                'a short gap is bridged with the last good rate, a longer one falls back to '
+                'the accelerometer', throttle_duration_sec=10.0)
         att = self._out_att
         att.header = header
         att.vector.x, att.vector.y = est.roll, est.pitch
@@ -207,12 +303,61 @@ class AttitudeNode(Node):
         fx, fy, fz = est.force
         lin = imu.linear_acceleration
         lin.x, lin.y, lin.z = fx * g, fy * g, fz * g
-        source = self.estimator.force_covariance_list_g2
+        if gyro is not None and math.isfinite(gyro[0] + gyro[1] + gyro[2]):
+            b = self.filter.gyro_bias_rad_s
+            w = imu.angular_velocity
+            w.x, w.y, w.z = gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]
+            wcov = imu.angular_velocity_covariance
+            wcov[0] = wcov[4] = wcov[8] = self.filter.settings.gyro_noise_std_rad_s ** 2
+        elif imu.angular_velocity_covariance[0] != -1.0:
+            imu.angular_velocity_covariance[0] = -1.0
+            w = imu.angular_velocity
+            w.x = w.y = w.z = 0.0
+        source = self.legacy.force_covariance_list_g2
         if source is not self._fcov_source:   # changes with the calibration or the noise
             self._fcov_source = source
             imu.linear_acceleration_covariance = [v * g * g for v in source]
         self.imu_pub.publish(imu)
         self._published += 1
+
+    def _gyro_for(self, msg, stamp):
+        """Return the angular velocity (accelerometer frame, rad/s) for this sample or None."""
+        if msg.angular_velocity_covariance[0] != -1.0:
+            w = msg.angular_velocity
+            return (w.x, w.y, w.z)
+        sample = self._gyro_sample
+        if sample is None or abs(sample[0] - stamp) > GYRO_MATCH_S:
+            return None
+        return sample[1]
+
+    def _on_gyro(self, msg):
+        """Keep the newest angular velocity of ``gyro_topic`` (a second Imu topic)."""
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        w = msg.angular_velocity
+        rate = (w.x, w.y, w.z)
+        rotation = self._gyro_rotation
+        if rotation is not None:
+            r = rotation
+            rate = (r[0] * w.x + r[1] * w.y + r[2] * w.z, r[3] * w.x + r[4] * w.y + r[5] * w.z,
+                    r[6] * w.x + r[7] * w.y + r[8] * w.z)
+        elif self._accel_frame is not None and msg.header.frame_id != self._accel_frame:
+            self._gyro_frame_reason = (
+                f'gyro topic frame "{msg.header.frame_id}" differs from the accelerometer\'s '
+                f'"{self._accel_frame}" and no gyro_rotation relates them: the gyro is not used')
+            self._problem('gyro_frame', self._gyro_frame_reason)
+            self._gyro_sample = None
+            return
+        self._gyro_sample = (stamp, rate)
+
+    def _on_odometry(self, msg):
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        twist = msg.twist.twist
+        try:
+            self._odometry.add(stamp, twist.linear.x, twist.angular.z)
+        except AccelcalError as exc:
+            self._problem('odometry', f'odometry: {exc}')
+            return
+        self._odometry_moving = abs(twist.linear.x) > 0.05 or abs(twist.angular.z) > 0.01
 
     def _skip(self, reason):
         """Count an impossible sample and say so, at most every 10 s."""
@@ -244,6 +389,14 @@ class AttitudeNode(Node):
         elif skipped:
             status.level = DiagnosticStatus.WARN
             status.message = f'{skipped} impossible samples skipped'
+        elif self._gyro_frame_reason:
+            status.level, status.message = DiagnosticStatus.WARN, self._gyro_frame_reason
+        elif self._input_problems:
+            status.level = DiagnosticStatus.WARN
+            status.message = 'bad gyro/odometry input: ' + ', '.join(
+                f'{k} {v}' for k, v in sorted(self._input_problems.items()))
+        elif self.estimator is self.filter and self.filter.mode == MODE_BLIND:
+            status.level, status.message = DiagnosticStatus.WARN, MODE_BLIND
         else:
             status.level, status.message = DiagnosticStatus.OK, 'publishing'
         values = {'samples_received': str(self._received),
@@ -252,7 +405,19 @@ class AttitudeNode(Node):
                   'skipped_zero': str(self._skipped.get('zero', 0)),
                   'skipped_out_of_range': str(self._skipped.get('out of range', 0)),
                   'calibrated': str(self.estimator.calibrated).lower(),
-                  'calibration_source': self._calibration_source}
+                  'calibration_source': self._calibration_source,
+                  'mode': 'fixed low-pass (time_constant_s), accelerometer only'
+                  if self.estimator is self.legacy else self.filter.mode}
+        if self.estimator is self.filter:
+            f = self.filter
+            values['still'] = str(f.detector.still).lower()
+            values['gyro_bias_rad_s'] = ', '.join(f'{v:.5f}' for v in f.gyro_bias_rad_s)
+            values['gyro_bias_known'] = str(f.bias_known).lower()
+            values['accelerometer_rejected'] = str(f.rejecting).lower()
+            values['gyro_nan'] = str(f.gyro_rejections['NaN'])
+            values['gyro_saturated'] = str(f.gyro_rejections['saturated'])
+        for key, count in self._input_problems.items():
+            values[f'bad_{key}'] = str(count)
         if self._rate_dt:
             values['rate_hz_measured'] = f'{1.0 / self._rate_dt:.2f}'
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]

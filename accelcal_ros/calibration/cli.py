@@ -5,7 +5,10 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
   detection and LM fit on a recording;
 * ``accelcal apply rec.csv --calibration calib.yaml -o corrected.csv``: calibrated samples
   in the same CSV format;
-* ``accelcal attitude rec.csv --calibration calib.yaml``: roll/pitch per sample (deg);
+* ``accelcal attitude rec.csv --calibration calib.yaml [--odometry odo.csv]``: roll/pitch
+  per sample (deg) from :func:`accelcal_ros.sensor.tilt_series.estimate_series` (adaptive
+  averaging; gyro-aided when the recording has ``gx,gy,gz`` columns, rad/s, or its bag
+  Imu carries angular velocity; odometry-aided with ``--odometry``);
 * ``accelcal plot-calibration calib.yaml -o calib.png``: captured points against the unit
   sphere and the per-position residuals;
 * ``accelcal study calibration``: the Monte Carlo accuracy study and paper A's worked
@@ -50,12 +53,27 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.set_defaults(handler=_apply)
 
     p = subparsers.add_parser('attitude', help='print roll/pitch of a recording')
-    p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
-                   'directory, .mcap, .db3, ROS 1 .bag) with a sensor_msgs/Imu topic')
+    p.add_argument('recording', help='CSV recording (t,ax,ay,az[,gx,gy,gz]; s, m/s^2, rad/s) '
+                   'or bag (rosbag2 directory, .mcap, .db3, ROS 1 .bag) with a '
+                   'sensor_msgs/Imu topic (its angular velocity is used when provided)')
     _add_bag_arguments(p)
     p.add_argument('--calibration', help='calibration YAML (default: uncalibrated)')
+    p.add_argument('--odometry', help='odometry CSV t,v,yaw_rate (s, m/s, rad/s): the '
+                   "vehicle's acceleration is removed from the specific force")
+    p.add_argument('--lever-arm', type=float_in(-100.0, 100.0), nargs=3, default=[0.0] * 3,
+                   metavar=('X', 'Y', 'Z'), help='sensor position from the odometry reference '
+                   'point, m, vehicle frame (default 0 0 0)')
+    p.add_argument('--no-gyro', action='store_true', help='ignore angular velocity')
+    p.add_argument('--platform-accel-g', type=float_in(0.0, 1.0), default=0.0,
+                   help='steady acceleration the platform may have (g; default 0): '
+                        'accelerometer only, the std columns include the tilt it could fake')
+    p.add_argument('--still-time-constant-s', type=float_in(0.01, 60.0), default=1.0,
+                   help='longest averaging while still (default 1 s)')
+    p.add_argument('--moving-time-constant-s', type=float_in(0.001, 10.0), default=0.04,
+                   help='low-pass while moving (default 0.04 s)')
     p.add_argument('--time-constant-s', type=float_in(0.0, 3600.0), default=0.0,
-                   help='low-pass time constant in s (default 0: none)')
+                   help='fixed low-pass time constant in s, accelerometer only, instead of '
+                        'the adaptive filter (default 0: adaptive)')
     p.add_argument('--accel-threshold-g', type=float_in(0.0, 16.0, low_open=True), default=0.05,
                    help='flag samples whose |f| departs from 1 g by more (default 0.05)')
     p.add_argument('--every', type=positive_int, default=1, help='print every N-th sample')
@@ -256,7 +274,8 @@ def _attitude(args):
     from accelcal_ros.fileio import write_text_atomic
     from accelcal_ros.sensor.calibration_file import load_calibration
     from accelcal_ros.sensor.model import SensorModel
-    from accelcal_ros.sensor.tilt import TiltEstimator
+    from accelcal_ros.sensor.tilt_filter import FilterSettings
+    from accelcal_ros.sensor.tilt_series import estimate_series, read_odometry_csv
     import numpy as np
 
     if args.every < 1:
@@ -269,16 +288,24 @@ def _attitude(args):
     else:
         model, tilt_std = SensorModel.identity(), 0.0
         print('note: no --calibration given: uncalibrated readings', file=sys.stderr)
-    estimator = TiltEstimator(model, tilt_std_rad=tilt_std,
-                              time_constant_s=args.time_constant_s,
-                              accel_threshold_g=args.accel_threshold_g)
-    t, accel_g = _read_recording_of(args)
+    odometry = read_odometry_csv(args.odometry) if args.odometry else None
+    t, accel_g, gyro = _read_attitude_input(args)
+    if args.no_gyro:
+        gyro = None
     if args.calibration:
         _warn_if_calibration_misfits(model, t, accel_g)
+    settings = FilterSettings(still_time_constant_s=args.still_time_constant_s,
+                              moving_time_constant_s=args.moving_time_constant_s,
+                              platform_accel_g=args.platform_accel_g)
+    estimates = estimate_series(t, accel_g, gyro, odometry, args.lever_arm, model,
+                                float(tilt_std), settings=settings,
+                                time_constant_s=args.time_constant_s,
+                                accel_threshold_g=args.accel_threshold_g)
+    print(f'note: {"gyro-aided" if gyro is not None else "accelerometer only"}'
+          f'{", odometry-aided" if odometry is not None else ""}', file=sys.stderr)
     lines = ['t,roll_deg,pitch_deg,roll_std_deg,pitch_std_deg,accelerating']
     deg = math.degrees
-    for k, (ti, ai) in enumerate(zip(t.tolist(), accel_g.tolist())):
-        est = estimator.update(ti, ai)
+    for k, (ti, est) in enumerate(zip(t.tolist(), estimates)):
         if k % args.every or est is None:
             continue
         var_roll, _, var_pitch = est.cov
@@ -292,6 +319,33 @@ def _attitude(args):
     else:
         sys.stdout.write(text)
     return 0
+
+
+def _read_attitude_input(args):
+    """Return ``(t, accel g, gyro rad/s or None)`` of a CSV (gx,gy,gz optional) or a bag."""
+    from accelcal_ros.recording.bag import is_bag
+    import numpy as np
+
+    if is_bag(args.recording):
+        from accelcal_ros.recording.cli_support import open_bag, warn
+        from accelcal_ros.recording.streams import read_imu
+
+        with open_bag(args.recording, args.stamp) as bag:
+            imu = read_imu(bag, args.topic)
+        warn(imu.warnings)
+        return imu.t, imu.accel / STANDARD_GRAVITY, imu.gyro
+    t, accel = _read_recording_of(args)
+    from accelcal_ros.fileio import read_numeric_csv
+
+    columns = read_numeric_csv(args.recording, ('t',), ('gx', 'gy', 'gz'))
+    present = [c for c in ('gx', 'gy', 'gz') if c in columns]
+    if not present:
+        return t, accel, None
+    if len(present) != 3:
+        from accelcal_ros.errors import FileFormatError
+        raise FileFormatError(args.recording, f'gyro columns {present}: give all of gx,gy,gz '
+                              '(rad/s) or none', 1)
+    return t, accel, np.stack([columns['gx'], columns['gy'], columns['gz']], axis=1)
 
 
 def _plot(args):

@@ -13,7 +13,8 @@ returns the next :class:`FrameSet` to stitch, or ``None``:
 * **Attitude.** Before the first attitude nothing is stitched (said once). The attitude
   of the frames' instant may still be on its way (topics are not ordered): the policy
   waits up to ``attitude_wait_s`` for one stamped at or after the frames, then takes the
-  nearest within ``attitude_tolerance_s`` or skips the set (said once).
+  attitude at the frames' stamp (interpolated between the two around it, or the nearest
+  within ``attitude_tolerance_s``) or skips the set (said once).
 * **Time jumps.** A stream (camera or attitude) whose stamp moves by more than
   ``jump_threshold_s`` away from what the wall time elapsed since its previous message
   allows -- a set stamped in the future, the clock jumping back on ``ros2 bag play
@@ -281,7 +282,7 @@ class FrameSetPolicy:
                 return None
         self._waiting = None
         tolerance_att = self.settings['attitude_tolerance_s']
-        attitude = self._attitudes.nearest(newest, tolerance_att)['attitude']
+        attitude = self._attitudes.interpolated('attitude', newest, tolerance_att)
         if attitude is None:
             self.status = 'no attitude near the frame stamps'
             self._warn_once('attitude_gap', f'no attitude within {tolerance_att} s of the '

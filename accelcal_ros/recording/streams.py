@@ -288,14 +288,16 @@ def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Op
         except InputError:
             if attitude_topic is not None:
                 raise
-    from accelcal_ros.sensor.tilt import TiltEstimator
+    from accelcal_ros.sensor.tilt_series import estimate_series
     from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 
     imu = read_imu(bag, imu_topic, '--imu')
-    estimator = TiltEstimator(model)
+    # the adaptive filter (gyro-aided when the Imu carries angular velocity): a frame is
+    # stitched with the estimate at its stamp, not with one raw sample
+    estimates = estimate_series(imu.t, imu.accel / STANDARD_GRAVITY_M_S2, imu.gyro,
+                                sensor_model=model)
     keep_t, roll, pitch = [], [], []
-    for ti, ai in zip(imu.t, imu.accel / STANDARD_GRAVITY_M_S2):
-        est = estimator.update(float(ti), ai)
+    for ti, est in zip(imu.t, estimates):
         if est is not None:
             keep_t.append(ti)
             roll.append(est.roll)

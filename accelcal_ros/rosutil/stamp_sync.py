@@ -70,6 +70,25 @@ class StampMatcher:
                                                          self._items[key][best[1]])
         return result
 
+    def interpolated(self, key, stamp_s, tolerance_s):
+        """
+        Return ``(stamp_s, item)`` of stream ``key`` linearly interpolated at ``stamp_s``.
+
+        Items are tuples of numbers. Between two stored stamps (each within
+        ``tolerance_s``) the items are interpolated; otherwise the nearest within the
+        tolerance is returned as it is, or ``None``.
+        """
+        with self._lock:
+            stamps, items = self._stamps[key], self._items[key]
+            index = bisect.bisect_left(stamps, stamp_s)
+            if 0 < index < len(stamps):
+                t0, t1 = stamps[index - 1], stamps[index]
+                if stamp_s - t0 <= tolerance_s and t1 - stamp_s <= tolerance_s and t1 > t0:
+                    w = (stamp_s - t0) / (t1 - t0)
+                    a, b = items[index - 1], items[index]
+                    return stamp_s, tuple(x + w * (y - x) for x, y in zip(a, b))
+        return self.nearest(stamp_s, tolerance_s, keys=[key])[key]
+
     def clear(self, key=None):
         """Forget the items of ``key`` (or of every stream)."""
         with self._lock:

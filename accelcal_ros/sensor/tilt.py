@@ -183,12 +183,13 @@ class TiltEstimator:
         self._update_force_covariance()
         self.reset()
 
-    def update(self, stamp: float, raw_g: Sequence[float]) -> Optional[TiltEstimate]:
+    def correct(self, raw_g: Sequence[float]
+                ) -> Optional[Tuple[float, float, float, float]]:
         """
-        Return the :class:`TiltEstimate` for one raw reading (g) at ``stamp`` (s).
+        Return ``(f_x, f_y, f_z, |f|)``, the calibrated specific force (g), or None.
 
-        Returns None for impossible input (NaN/infinite, zero or absurd magnitude; see the
-        module docstring) and sets :attr:`last_rejection`.
+        None for impossible input (see the module docstring); :attr:`last_rejection` says
+        why.
         """
         ax, ay, az = raw_g
         ax, ay, az = float(ax), float(ay), float(az)
@@ -208,6 +209,53 @@ class TiltEstimator:
         if not MIN_FORCE_G <= magnitude <= MAX_FORCE_G:
             self.last_rejection = 'zero' if magnitude < MIN_FORCE_G else 'out of range'
             return None
+        return fx, fy, fz, magnitude
+
+    def angles_with_covariance(self, sx: float, sy: float, sz: float, shrink: float = 1.0
+                               ) -> Tuple[float, float, Tuple[float, float, float]]:
+        """
+        Return ``(roll, pitch, (var_roll, cov, var_pitch))`` of a specific force ``s`` (g).
+
+        The covariance is the force noise propagated through the angle equations, times
+        ``shrink`` (the variance ratio of an average: ``alpha / (2 - alpha)`` for a
+        low-pass, ``1 / n`` for a mean), plus ``tilt_std_rad^2``; roll's is capped where
+        it is undefined.
+        """
+        hyz = math.hypot(sy, sz)
+        roll = math.atan2(sy, sz)
+        pitch = math.atan2(-sx, hyz)
+        norm = max(math.sqrt(sx * sx + hyz * hyz), 1e-12)
+        r1, r2, p0, p1, p2 = _jacobian_rows(sx / norm, sy / norm, sz / norm)
+        # cov = J S J^T with J = [[0, r1, r2], [p0, p1, p2]] and S the force covariance.
+        s = self._force_cov_list
+        sr0 = s[1] * r1 + s[2] * r2
+        sr1 = s[4] * r1 + s[5] * r2
+        sr2 = s[7] * r1 + s[8] * r2
+        c00 = r1 * sr1 + r2 * sr2
+        c01 = p0 * sr0 + p1 * sr1 + p2 * sr2
+        c11 = (p0 * (s[0] * p0 + s[1] * p1 + s[2] * p2)
+               + p1 * (s[3] * p0 + s[4] * p1 + s[5] * p2)
+               + p2 * (s[6] * p0 + s[7] * p1 + s[8] * p2))
+        if shrink != 1.0:
+            c00, c01, c11 = c00 * shrink, c01 * shrink, c11 * shrink
+        extra = self.tilt_std_rad ** 2
+        c00 += extra
+        c11 += extra
+        if r1 == 0.0 and r2 == 0.0 or c00 > ROLL_VARIANCE_CAP:
+            c00, c01 = ROLL_VARIANCE_CAP, 0.0
+        return roll, pitch, (c00, c01, c11)
+
+    def update(self, stamp: float, raw_g: Sequence[float]) -> Optional[TiltEstimate]:
+        """
+        Return the :class:`TiltEstimate` for one raw reading (g) at ``stamp`` (s).
+
+        Returns None for impossible input (NaN/infinite, zero or absurd magnitude; see the
+        module docstring) and sets :attr:`last_rejection`.
+        """
+        corrected = self.correct(raw_g)
+        if corrected is None:
+            return None
+        fx, fy, fz, magnitude = corrected
         force = (fx, fy, fz)
         deviation = abs(magnitude - 1.0)
         accelerating = deviation > self.accel_threshold_g
@@ -235,29 +283,8 @@ class TiltEstimator:
             px, py, pz = self._smoothed
             sx, sy, sz = px + alpha * (fx - px), py + alpha * (fy - py), pz + alpha * (fz - pz)
         self._smoothed = (sx, sy, sz)
-        hyz = math.hypot(sy, sz)
-        roll = math.atan2(sy, sz)
-        pitch = math.atan2(-sx, hyz)
-        norm = max(math.sqrt(sx * sx + hyz * hyz), 1e-12)
-        r1, r2, p0, p1, p2 = _jacobian_rows(sx / norm, sy / norm, sz / norm)
-        # cov = J S J^T with J = [[0, r1, r2], [p0, p1, p2]] and S the force covariance.
-        s = self._force_cov_list
-        sr0 = s[1] * r1 + s[2] * r2
-        sr1 = s[4] * r1 + s[5] * r2
-        sr2 = s[7] * r1 + s[8] * r2
-        c00 = r1 * sr1 + r2 * sr2
-        c01 = p0 * sr0 + p1 * sr1 + p2 * sr2
-        c11 = (p0 * (s[0] * p0 + s[1] * p1 + s[2] * p2)
-               + p1 * (s[3] * p0 + s[4] * p1 + s[5] * p2)
-               + p2 * (s[6] * p0 + s[7] * p1 + s[8] * p2))
-        if tau > 0.0 and alpha < 1.0:
-            shrink = alpha / (2.0 - alpha)
-            c00, c01, c11 = c00 * shrink, c01 * shrink, c11 * shrink
-        extra = self.tilt_std_rad ** 2
-        c00 += extra
-        c11 += extra
-        if r1 == 0.0 and r2 == 0.0 or c00 > ROLL_VARIANCE_CAP:
-            c00, c01 = ROLL_VARIANCE_CAP, 0.0
+        shrink = alpha / (2.0 - alpha) if tau > 0.0 and alpha < 1.0 else 1.0
+        roll, pitch, (c00, c01, c11) = self.angles_with_covariance(sx, sy, sz, shrink)
         if accelerating:
             extra = math.asin(min(1.0, deviation)) ** 2
             c00 += extra

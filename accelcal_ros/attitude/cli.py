@@ -1,0 +1,71 @@
+"""
+Offline commands of the attitude feature.
+
+* ``accelcal study motion [--rates 100 800] [--drive-out drive.csv --odometry-out odo.csv]``:
+  roll/pitch error through a simulated drive for accelerometer only, + odometry, + gyro,
+  + both, beside the ``imufusion``/``ahrs`` anchors (:mod:`accelcal_ros.attitude.study`);
+  optionally writes the drive as a recording (``t,ax,ay,az,gx,gy,gz``; s, m/s^2, rad/s)
+  and its odometry (``t,v,yaw_rate``) for ``accelcal attitude``.
+
+(``accelcal attitude REC`` itself is registered by the calibration feature's commands.)
+"""
+import sys
+from typing import Any
+
+from accelcal_ros.cli_args import float_in, nonnegative_int
+
+
+def register(subparsers: Any, study_subparsers: Any) -> None:
+    """Add this feature's subcommands to the ``accelcal`` parser."""
+    p = study_subparsers.add_parser('motion', help='roll/pitch error through a simulated '
+                                    'drive: accelerometer only, + odometry, + gyro, + both, '
+                                    'and the imufusion/ahrs anchors')
+    p.add_argument('--rates', type=float_in(10.0, 3200.0), nargs='+', default=[100.0],
+                   help='sample rates in Hz (default 100)')
+    p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
+    p.add_argument('--no-anchors', action='store_true', help='skip imufusion and ahrs')
+    p.add_argument('--drive-out', help='also write the (first rate\'s) drive as a CSV '
+                   'recording t,ax,ay,az,gx,gy,gz (s, m/s^2, rad/s)')
+    p.add_argument('--odometry-out', help='also write its odometry as CSV t,v,yaw_rate')
+    p.set_defaults(handler=_study)
+
+
+def _study(args):
+    from accelcal_ros.attitude import study
+
+    status = 0
+    for rate in args.rates:
+        rows = study.run_study(rate_hz=rate, seed=args.seed, anchors=not args.no_anchors)
+        for line in study.format_rows(rows, rate):
+            print(line)
+        verdict = study.check_targets(rows)
+        for line in verdict:
+            print(line)
+        print()
+    if args.drive_out or args.odometry_out:
+        _write_drive(args)
+    return status
+
+
+def _write_drive(args):
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.sensor.drive_sim import simulate_drive
+    from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
+    import numpy as np
+
+    drive = simulate_drive(rate_hz=args.rates[0], seed=args.seed)
+    if args.drive_out:
+        table = np.column_stack([drive.t, drive.accel_g * STANDARD_GRAVITY_M_S2,
+                                 drive.gyro_rad_s])
+        lines = ['t,ax,ay,az,gx,gy,gz'] + [
+            ','.join(f'{v:.6f}' if k == 0 else f'{v:.7g}' for k, v in enumerate(row))
+            for row in table.tolist()]
+        write_text_atomic(args.drive_out, '\n'.join(lines) + '\n')
+        print(f'wrote {drive.t.size} samples to {args.drive_out} (lever arm '
+              f'{list(drive.lever_arm_m)} m from the odometry reference point)')
+    if args.odometry_out:
+        lines = ['t,v,yaw_rate'] + [f'{t:.6f},{v:.5f},{r:.6f}' for t, v, r in zip(
+            drive.odo_t.tolist(), drive.odo_speed.tolist(), drive.odo_yaw_rate.tolist())]
+        write_text_atomic(args.odometry_out, '\n'.join(lines) + '\n')
+        print(f'wrote {drive.odo_t.size} odometry rows to {args.odometry_out}')
+    sys.stdout.flush()

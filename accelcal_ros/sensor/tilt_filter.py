@@ -1,0 +1,567 @@
+r"""
+Roll and pitch a panorama can use: steady at rest, aided in motion (pure core).
+
+:class:`AttitudeFilter` turns a stream of accelerometer samples (raw, g; REP-145 +1 g up
+at rest), optionally with angular velocity (rad/s, same body frame, x forward, y left,
+z up) and the platform's own acceleration (g, from odometry:
+:mod:`accelcal_ros.sensor.odometry_aid`), into roll and pitch (REP-103, rad) with an
+honest covariance. Calibration, impossible samples and the angle equations are those of
+:class:`~accelcal_ros.sensor.tilt.TiltEstimator` (one implementation).
+
+**Accelerometer only: averaging adapted to stillness.** The specific force ``f`` (minus
+the platform acceleration when given) feeds :class:`~accelcal_ros.sensor.stillness.
+StillnessDetector` (its default thresholds) and two averages:
+
+* *fast*: a first-order low-pass ``f_fast += a (f - f_fast)``, ``a = 1 - exp(-dt /
+  moving_time_constant_s)`` (0.04 s: one 25 fps frame). The output while moving is the
+  double low-pass ``2 f_fast - LP(f_fast)``: no lag behind a steady turn of the sensor
+  (a first-order low-pass lags by its time constant), a lag of about
+  ``moving_time_constant_s`` only while the turn rate changes, and 1.6 times the
+  low-pass's noise (0.08 deg at 100 Hz, 0.13 deg at 800 Hz).
+* *still*: while the detector says still, a mean that grows from the fast average's
+  effective count ``(2 - a) / a`` up to an exponential memory of
+  ``still_time_constant_s`` (1 s); the output while still. Its noise is that of a mean
+  over up to ``still_time_constant_s``: 0.013 deg at 100 Hz, 0.014 deg at 800 Hz with the
+  datasheet noise. A change that the detector has not yet seen (the first 20-60 ms of a
+  motion, a slow creep) is caught when ``|f_fast - f_still|`` exceeds ``jump_sigma``
+  standard deviations of the fast average on an axis (0.3-0.5 deg): the still mean
+  is dropped and the moving output is used for one detector window (0.3 s). So while
+  still the estimate lags a slow creep by at most that threshold.
+
+Covariance: the noise propagated as in :class:`TiltEstimator`, times the variance ratio
+of the average (``1 / (2 n - 1)`` for a mean of n samples, ``a / (2 - a)`` for the
+low-pass), plus the calibration's ``tilt_std_rad^2``.
+
+**Honest when blind.** The accelerometer cannot tell gravity from a steady acceleration.
+While moving without an aid, the variance gains ``max(asin(| |f| - 1 |), atan(s))^2``
+with ``s`` the detector's spread of 20 ms means (g): the tilt that the motion seen could
+fake. On a platform that may accelerate steadily (``platform_accel_g`` > 0: a vehicle, a
+mast on a ship) a steady turn looks still, so the variance gains
+``atan(platform_accel_g)^2`` on every sample unless odometry or a gyro is used;
+:attr:`AttitudeFilter.mode` says which case applies. ``| |f| - 1 |`` above
+``accel_threshold_g`` holds the last good tilt (at most ``max_hold_s``), as
+:class:`TiltEstimator` does.
+
+**Gyro-aided (complementary filter on the gravity direction).** With angular velocity
+``w`` the filter keeps ``u``, the unit "up" direction in the body frame, propagated by
+``du/dt = u x (w - b)`` and pulled towards ``f / |f|`` with the gain
+``k = 1 - exp(-dt / gyro_time_constant_s)``: the vector form of imu_tools'
+complementary filter and of Mahony's proportional term; yaw stays unobserved. The gain is
+acceleration-aware (x-io Fusion's acceleration rejection): the innovation
+``f / |f| - u``, low-passed over 0.1 s, larger than ``rejection_deg`` (or ``| |f| - 1 |``
+above ``accel_threshold_g``) means the platform accelerates, and the accelerometer is
+ignored (gyro only) for at most ``rejection_timeout_s`` (20 s), after which it is trusted
+again; when the detector says still for 3 s (1 s when odometry says stopped) while it is
+ignored, the estimate has drifted during a long manoeuvre and the accelerometer is
+trusted at once (time constant 0.5 s). The gyro bias ``b`` is learnt while the detector
+says still (gyro criteria included once a bias is known, with a mean rate below
+0.01 rad/s), the accelerometer agrees with the gyro within 0.5 deg (a steady pull-away
+over a changing grade looks still) and odometry, when given, says stopped: 20 ms block
+means of ``w``, committed only once a still window has passed them (the start of a
+motion never enters), averaged with a memory of ``bias_time_constant_s``. Until the
+first 0.2 s of stillness have given a bias the output is the accelerometer-only
+estimate. While the detector says still and the accelerometer agrees, the direction is
+the still average's (the gyro's noise would only add a random walk at rest). Variance:
+per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
+``s_w`` and bias uncertainty ``s_b``, which grows by ``gyro_bias_drift_rad_s2`` per
+second away from stillness), then ``P = (1 - k)^2 P + k^2 R`` with ``R`` the
+accelerometer's angle variance, plus the squared low-passed innovation while the
+accelerometer is used (what an undetected acceleration below the rejection threshold
+may add).
+
+Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``) are not used:
+the previous good rate is kept for up to 0.1 s, after which the filter falls back to the
+accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them by reason.
+
+Cost: plain floats per sample (no numpy), as :class:`TiltEstimator`.
+"""
+from collections import deque
+from dataclasses import dataclass, fields
+import math
+from typing import Deque, Dict, Optional, Sequence, Tuple
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
+from accelcal_ros.sensor.model import SensorModel
+from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
+from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
+
+GYRO_HOLD_S = 0.1
+"""A bad or missing gyro sample is bridged with the last good rate for at most this (s)."""
+INNOVATION_TIME_CONSTANT_S = 0.1
+"""Low-pass of the innovation that the acceleration rejection tests (s)."""
+BIAS_MIN_BLOCKS = 10
+"""20 ms blocks of stillness needed before the gyro bias is known (0.2 s)."""
+MAX_GAP_S = 0.5
+BIAS_INTEGRAL_TIME_CONSTANT_S = 20.0
+"""Moving, accelerometer trusted: the bias follows the innovation with this time constant."""
+"""A larger gap between samples restarts the gyro state (s)."""
+BIAS_RATE_LIMIT_RAD_S = 0.01
+"""Stillness with a known bias: the mean corrected rate below this (0.57 deg/s). The
+detector's default (0.05 rad/s) lets a vehicle cruising over a changing grade (0.5 deg/s
+of pitch rate) pass as still, and its rate would be learnt as bias."""
+
+BIAS_INNOVATION_LIMIT_RAD = math.radians(0.5)
+"""The bias is learnt only while the accelerometer agrees with the gyro this well."""
+STILL_RECOVERY_S = 1.0
+"""Still (odometry: stopped) but rejecting this long: the estimate drifted during a long
+manoeuvre; the accelerometer is trusted again."""
+STILL_RECOVERY_UNAIDED_S = 3.0
+"""The same without odometry (a steady pull on a smooth road also looks still)."""
+STILL_RECOVERY_TIME_CONSTANT_S = 0.5
+"""Time constant of that recovery (s)."""
+
+MODE_ACCEL = 'accelerometer only'
+MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it does not ' \
+             'accelerate'
+MODE_ODOMETRY = 'accelerometer + odometry'
+MODE_GYRO = 'gyro-aided'
+MODE_GYRO_BAD = 'gyro samples unusable (NaN or saturated): accelerometer only'
+MODE_GYRO_WAIT = 'gyro present: waiting for a still moment to learn its bias ' \
+                 '(accelerometer only until then)'
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Every setting of :class:`AttitudeFilter` (see the module docstring)."""
+
+    still_time_constant_s: float = 1.0
+    """Longest memory of the average while still (s)."""
+    moving_time_constant_s: float = 0.04
+    """Time constant of the low-pass used while moving (s): its lag."""
+    jump_sigma: float = 5.0
+    """A still average further than this many standard deviations of the fast one restarts."""
+    gyro_time_constant_s: float = 5.0
+    """Complementary filter: time constant of the pull towards the accelerometer (s)."""
+    rejection_deg: float = 2.0
+    """Innovation beyond which the accelerometer is ignored (the platform accelerates; deg)."""
+    rejection_timeout_s: float = 20.0
+    """Longest time the accelerometer is ignored before it is trusted again (s)."""
+    bias_time_constant_s: float = 1.0
+    """Memory of the gyro bias estimate while still (s)."""
+    gyro_noise_std_rad_s: float = 0.0066
+    """Gyro noise per sample (rad/s; ITG-3205: 0.38 deg/s rms)."""
+    gyro_bias_drift_rad_s2: float = 2.0e-4
+    """Growth of the gyro bias uncertainty away from stillness (rad/s per s)."""
+    gyro_saturation_rad_s: float = 34.9
+    """A rate at or beyond this on an axis is saturated (rad/s; ITG-3205: 2000 deg/s)."""
+    platform_accel_g: float = 0.0
+    """Steady acceleration the platform may have (g; 0: the rig does not ride a vehicle)."""
+    odometry_accel_std_g: float = 0.02
+    """Uncertainty of the platform acceleration derived from odometry (g)."""
+
+    def check(self) -> None:
+        """Raise InputError naming the first setting out of its range."""
+        zero_ok = ('platform_accel_g', 'gyro_bias_drift_rad_s2', 'odometry_accel_std_g',
+                   'gyro_noise_std_rad_s')
+        for item in fields(self):
+            value = getattr(self, item.name)
+            ok = isinstance(value, (int, float)) and math.isfinite(value) and (
+                value >= 0.0 if item.name in zero_ok else value > 0.0)
+            if not ok:
+                kind = 'non-negative' if item.name in zero_ok else 'positive'
+                raise InputError(f'attitude filter setting {item.name} must be a {kind} '
+                                 f'number, got {value!r}')
+        if self.platform_accel_g > 1.0:
+            raise InputError('platform_accel_g must be at most 1 g, got '
+                             f'{self.platform_accel_g!r}')
+
+
+def _alpha(dt: float, tau: float) -> float:
+    return 1.0 - math.exp(-dt / tau) if dt > 0.0 else 0.0
+
+
+def _dema_variance_ratio(a: float) -> float:
+    """Return sum(h^2) of the double-EMA ``2 EMA - EMA(EMA)`` of white noise, gain ``a``."""
+    if a >= 1.0:
+        return 1.0
+    q = 1.0 - (1.0 - a) ** 2
+    return 4.0 * a * a / q - 4.0 * a ** 3 / q ** 2 + a ** 4 * (2.0 - q) / q ** 3
+
+
+class AttitudeFilter:
+    """Adaptive, optionally gyro- and odometry-aided roll/pitch (see the module docstring)."""
+
+    def __init__(self, sensor_model: Optional[SensorModel] = None,
+                 noise_std_g: Sequence[float] = NOISE_STD_100HZ_G, tilt_std_rad: float = 0.0,
+                 accel_threshold_g: float = 0.05, max_hold_s: float = 1.0,
+                 settings: Optional[FilterSettings] = None,
+                 stillness: Optional[StillnessThresholds] = None) -> None:
+        self.tilt = TiltEstimator(sensor_model, noise_std_g, tilt_std_rad,
+                                  accel_threshold_g=accel_threshold_g, max_hold_s=max_hold_s)
+        self.settings = settings or FilterSettings()
+        self.settings.check()
+        self._stillness = stillness or StillnessThresholds(gyro_rate_rad_s=BIAS_RATE_LIMIT_RAD_S)
+        self.last_rejection = ''
+        """Why the last None was returned (see :class:`TiltEstimator`)."""
+        self.gyro_rejections: Dict[str, int] = {'NaN': 0, 'saturated': 0}
+        self.jumps = 0
+        """Restarts of the still average by the jump test."""
+        self.reset()
+
+    # -- configuration --------------------------------------------------------------------
+    def set_settings(self, settings: FilterSettings) -> None:
+        """Use new settings from now on (checked; the state is kept)."""
+        settings.check()
+        self.settings = settings
+
+    def set_calibration(self, sensor_model: SensorModel,
+                        tilt_std_rad: Optional[float] = None) -> None:
+        """Use a new calibration from now on (the filter restarts)."""
+        self.tilt.set_calibration(sensor_model, tilt_std_rad)
+        self.reset()
+
+    def set_noise(self, noise_std_g: Sequence[float]) -> None:
+        """Set the per-axis raw accelerometer noise (g)."""
+        self.tilt.set_noise(noise_std_g)
+
+    @property
+    def calibrated(self) -> bool:
+        """Return whether a calibration (not the identity) is in use."""
+        return self.tilt.calibrated
+
+    def reset(self) -> None:
+        """Forget every state (averages, stillness, gyro direction; the gyro bias is kept)."""
+        self.detector = StillnessDetector(self._stillness)
+        self._last_t: Optional[float] = None
+        self._fast: Optional[Tuple[float, float, float]] = None
+        self._fast_n = 0
+        self._fast2: Optional[Tuple[float, float, float]] = None
+        self._still: Optional[Tuple[float, float, float]] = None
+        self._still_n = 0.0
+        self._moving_until = -math.inf
+        self._held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
+        self._hold_start: Optional[float] = None
+        self._up: Optional[Tuple[float, float, float]] = None
+        self._up_n = 0
+        self._p = 0.0
+        self._innovation = (0.0, 0.0, 0.0)
+        self._reject_since: Optional[float] = None
+        self._gyro_last: Optional[Tuple[float, float, float, float]] = None
+        if not hasattr(self, '_bias'):
+            self._bias = (0.0, 0.0, 0.0)
+            self._bias_blocks = 0
+            self._bias_std = self.settings.gyro_noise_std_rad_s
+            self._bias_time = -math.inf
+        self._block: Optional[list] = None
+        self._pending: Deque[Tuple[float, float, float, float, float]] = deque()
+        self.mode = MODE_ACCEL
+        """Which estimate the last output is (one of the ``MODE_*`` lines)."""
+        self.rejecting = False
+        """Whether the gyro path ignores the accelerometer now (the platform accelerates)."""
+
+    @property
+    def bias_known(self) -> bool:
+        """Return whether a gyro bias has been learnt in a still moment."""
+        return self._bias_blocks >= BIAS_MIN_BLOCKS
+
+    @property
+    def gyro_bias_rad_s(self) -> Tuple[float, float, float]:
+        """Return the gyro bias estimate (rad/s, body frame)."""
+        return self._bias
+
+    # -- the sample -----------------------------------------------------------------------
+    def update(self, stamp: float, raw_g: Sequence[float],
+               gyro_rad_s: Optional[Sequence[float]] = None,
+               platform_accel_g: Optional[Sequence[float]] = None,
+               platform_moving: Optional[bool] = None) -> Optional[TiltEstimate]:
+        """
+        Return the estimate after one sample at ``stamp`` (s), or None (impossible sample).
+
+        ``raw_g``: the raw reading (g); ``gyro_rad_s``: angular velocity of the same
+        instant (body frame, rad/s) or None; ``platform_accel_g``: the platform's own
+        acceleration at the sensor (body frame, g) or None; ``platform_moving``: whether
+        odometry says the platform moves (None: unknown); the gyro bias is not learnt
+        while it does.
+        """
+        tilt = self.tilt
+        corrected = tilt.correct(raw_g)
+        if corrected is None:
+            self.last_rejection = tilt.last_rejection
+            return None
+        fx, fy, fz, magnitude = corrected
+        settings = self.settings
+        aided_by_odometry = platform_accel_g is not None
+        if platform_accel_g is not None:
+            fx -= platform_accel_g[0]
+            fy -= platform_accel_g[1]
+            fz -= platform_accel_g[2]
+            magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
+            if magnitude < 0.1:
+                self.last_rejection = 'zero'
+                return None
+        last = self._last_t
+        dt = 0.0
+        if last is not None and stamp > last:
+            dt = stamp - last
+        gap = last is not None and (stamp - last > MAX_GAP_S or stamp < last)
+        self._last_t = stamp if last is None or stamp > last else last
+        gyro = self._gyro_of(stamp, gyro_rad_s)
+        if gap:
+            self._up = None
+        detector = self.detector
+        bias_known = self.bias_known
+        if gyro is not None and bias_known:
+            b = self._bias
+            detector.add(stamp, (fx, fy, fz), (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
+        else:
+            detector.add(stamp, (fx, fy, fz))
+        still = detector.still
+        if gyro is not None:   # not while the accelerometer disagrees: a steady pull
+            self._learn_bias(stamp, gyro, still and not self.rejecting
+                             and not platform_moving
+                             and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
+        # the fast and the still averages (always: the fallback and the still output)
+        a_fast = _alpha(dt, settings.moving_time_constant_s)
+        fast = self._fast
+        self._fast_n += 1
+        if fast is None:
+            fast = (fx, fy, fz)
+        else:
+            a = max(a_fast, 1.0 / self._fast_n)
+            fast = (fast[0] + a * (fx - fast[0]), fast[1] + a * (fy - fast[1]),
+                    fast[2] + a * (fz - fast[2]))
+        self._fast = fast
+        a2 = max(a_fast, 1.0 / self._fast_n)
+        slow = self._fast2
+        slow = fast if slow is None else (slow[0] + a2 * (fast[0] - slow[0]),
+                                          slow[1] + a2 * (fast[1] - slow[1]),
+                                          slow[2] + a2 * (fast[2] - slow[2]))
+        self._fast2 = slow
+        # the magnitude test on the fast average: per sample, 800 Hz noise (12 mg on z)
+        # would cross 0.05 g every few seconds
+        deviation = abs(math.sqrt(fast[0] ** 2 + fast[1] ** 2 + fast[2] ** 2) - 1.0)
+        accelerating = deviation > tilt.accel_threshold_g
+        a_eff = max(a_fast, 1.0 / self._fast_n) if self._fast_n > 1 else 1.0
+        n_fast = (2.0 - a_eff) / a_eff
+        shrink_fast = a_eff / (2.0 - a_eff)
+        if still and not accelerating and stamp >= self._moving_until:
+            out, shrink = self._still_average(fast, (fx, fy, fz), dt, n_fast, shrink_fast)
+        if self._still is None or not still or accelerating or stamp < self._moving_until:
+            # moving: 2 EMA - EMA(EMA), no lag behind a steady turn of the sensor
+            self._still = None
+            out = (2.0 * fast[0] - slow[0], 2.0 * fast[1] - slow[1], 2.0 * fast[2] - slow[2])
+            shrink = _dema_variance_ratio(a_eff)
+        if gyro is not None and bias_known:
+            return self._gyro_update(stamp, dt, gyro, (fx, fy, fz), magnitude, accelerating,
+                                     aided_by_odometry, out, shrink, platform_moving,
+                                     still and self._still is not None)
+        self._up = None   # starts from the still average once the bias is known
+        mode = None
+        if gyro is not None:
+            mode = MODE_GYRO_WAIT
+        elif gyro_rad_s is not None:
+            mode = MODE_GYRO_BAD
+        return self._accel_output(stamp, (fx, fy, fz), magnitude, deviation, accelerating,
+                                  still, out, shrink, aided_by_odometry, mode)
+
+    # -- pieces ---------------------------------------------------------------------------
+    def _innovation_norm(self) -> float:
+        ix, iy, iz = self._innovation
+        return math.sqrt(ix * ix + iy * iy + iz * iz)
+
+    def _gyro_of(self, stamp: float, gyro_rad_s: Optional[Sequence[float]]
+                 ) -> Optional[Tuple[float, float, float]]:
+        """Return a usable rate for this sample (bridging bad ones) or None."""
+        if gyro_rad_s is None:
+            return None
+        gx, gy, gz = float(gyro_rad_s[0]), float(gyro_rad_s[1]), float(gyro_rad_s[2])
+        limit = self.settings.gyro_saturation_rad_s
+        reason = ''
+        if not math.isfinite(gx + gy + gz):
+            reason = 'NaN'
+        elif abs(gx) >= limit or abs(gy) >= limit or abs(gz) >= limit:
+            reason = 'saturated'
+        if not reason:
+            self._gyro_last = (stamp, gx, gy, gz)
+            return gx, gy, gz
+        self.gyro_rejections[reason] += 1
+        last = self._gyro_last
+        if last is not None and 0.0 <= stamp - last[0] <= GYRO_HOLD_S:
+            return last[1], last[2], last[3]
+        return None
+
+    def _learn_bias(self, stamp: float, gyro: Tuple[float, float, float], still: bool) -> None:
+        """Average 20 ms gyro blocks; commit those a still window has passed."""
+        block = self._block
+        block_s = self.detector.thresholds.block_s
+        if block is None or stamp >= block[0] + block_s or stamp < block[0]:
+            if block is not None and block[4] > 0:
+                n = block[4]
+                self._pending.append((block[0], block[5], block[1] / n, block[2] / n,
+                                      block[3] / n))
+            block = self._block = [stamp, 0.0, 0.0, 0.0, 0, stamp]
+            pending = self._pending
+            if not still:
+                pending.clear()
+            else:
+                limit = stamp - self.detector.thresholds.window_s
+                while pending and pending[0][1] < limit:
+                    self._commit_bias(pending.popleft())
+        block[1] += gyro[0]
+        block[2] += gyro[1]
+        block[3] += gyro[2]
+        block[4] += 1
+        block[5] = stamp
+
+    def _commit_bias(self, item: Tuple[float, float, float, float, float]) -> None:
+        t_start, t_end, gx, gy, gz = item
+        self._bias_blocks += 1
+        beta = max(1.0 / self._bias_blocks,
+                   _alpha(max(t_end - t_start, self.detector.thresholds.block_s),
+                          self.settings.bias_time_constant_s))
+        b = self._bias
+        self._bias = (b[0] + beta * (gx - b[0]), b[1] + beta * (gy - b[1]),
+                      b[2] + beta * (gz - b[2]))
+        self._bias_std = self.settings.gyro_noise_std_rad_s * math.sqrt(
+            beta / (2.0 - beta) / max(1.0, (t_end - t_start) * 100.0))
+        self._bias_time = t_end
+
+    def _still_average(self, fast, force, dt, n_fast, shrink_fast):
+        """Return (average, variance ratio) of the still mean, restarting it on a jump."""
+        still = self._still
+        cov = self.tilt.force_covariance_list_g2
+        if still is not None:
+            limit = self.settings.jump_sigma
+            for k, var in enumerate((cov[0], cov[4], cov[8])):
+                if abs(fast[k] - still[k]) > limit * math.sqrt(var * shrink_fast) + 5e-4:
+                    # a motion the detector has not seen yet: moving for one window
+                    self.jumps += 1
+                    self._still = None
+                    self._moving_until = self._last_t + self.detector.thresholds.window_s
+                    return fast, shrink_fast
+        if still is None:
+            self._still, self._still_n = fast, n_fast
+            return fast, shrink_fast
+        n = self._still_n + 1.0
+        self._still_n = n
+        a = max(1.0 / n, _alpha(dt, self.settings.still_time_constant_s))
+        fx, fy, fz = force
+        still = (still[0] + a * (fx - still[0]), still[1] + a * (fy - still[1]),
+                 still[2] + a * (fz - still[2]))
+        self._still = still
+        shrink = 1.0 / (2.0 * n - 1.0) if a * n <= 1.0 + 1e-12 else a / (2.0 - a)
+        return still, shrink
+
+    def _accel_output(self, stamp, force, magnitude, deviation, accelerating, still, out,
+                      shrink, aided_by_odometry, mode):
+        tilt = self.tilt
+        settings = self.settings
+        hold_start = self._hold_start
+        if not accelerating:
+            hold_start = None
+        elif hold_start is None:
+            hold_start = stamp
+        self._hold_start = hold_start
+        if hold_start is not None and self._held is not None and tilt.calibrated \
+                and stamp - hold_start <= tilt.max_hold_s:
+            roll, pitch, (c00, c01, c11) = self._held
+            extra = math.asin(min(1.0, deviation)) ** 2
+            self.mode = mode or MODE_ACCEL
+            return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
+                                True, magnitude)
+        roll, pitch, (c00, c01, c11) = tilt.angles_with_covariance(out[0], out[1], out[2],
+                                                                   shrink)
+        good = (roll, pitch, (c00, c01, c11))
+        extra = 0.0
+        if aided_by_odometry:
+            extra = settings.odometry_accel_std_g ** 2
+            self.mode = mode or MODE_ODOMETRY
+        else:
+            if not still:
+                spread = self.detector.motion_std
+                spread = spread if math.isfinite(spread) else 0.0
+                extra = max(math.asin(min(1.0, deviation)), math.atan(spread)) ** 2
+            if settings.platform_accel_g > 0.0:
+                extra += math.atan(settings.platform_accel_g) ** 2
+                self.mode = mode or MODE_BLIND
+            else:
+                self.mode = mode or MODE_ACCEL
+        if accelerating:
+            extra = max(extra, math.asin(min(1.0, deviation)) ** 2)
+        elif tilt.calibrated:
+            self._held = good
+        self.rejecting = False
+        return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
+                            accelerating, magnitude)
+
+    def _gyro_update(self, stamp, dt, gyro, force, magnitude, accelerating,
+                     aided_by_odometry, out, shrink, platform_moving, still):
+        """Run the complementary filter on the up direction; return its estimate."""
+        settings = self.settings
+        fx, fy, fz = force
+        inv = 1.0 / magnitude
+        ux, uy, uz = fx * inv, fy * inv, fz * inv
+        cov = self.tilt.force_covariance_list_g2
+        r_var = (cov[0] + cov[4] + cov[8]) / 3.0
+        up = self._up
+        if up is None:   # (re)start from the accelerometer's current average
+            sx, sy, sz = out
+            norm = math.sqrt(sx * sx + sy * sy + sz * sz)
+            self._up = (sx / norm, sy / norm, sz / norm)
+            self._up_n = 1
+            self._p = r_var * shrink
+            self._innovation = (0.0, 0.0, 0.0)
+            self._reject_since = None
+        else:
+            b = self._bias
+            wx, wy, wz = gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]
+            vx, vy, vz = up
+            vx, vy, vz = (vx + dt * (vy * wz - vz * wy), vy + dt * (vz * wx - vx * wz),
+                          vz + dt * (vx * wy - vy * wx))
+            ex, ey, ez = ux - vx, uy - vy, uz - vz
+            a_inn = _alpha(dt, INNOVATION_TIME_CONSTANT_S)
+            ix, iy, iz = self._innovation
+            ix, iy, iz = ix + a_inn * (ex - ix), iy + a_inn * (ey - iy), iz + a_inn * (ez - iz)
+            self._innovation = (ix, iy, iz)
+            innovation = math.sqrt(ix * ix + iy * iy + iz * iz)
+            reject = accelerating or innovation > math.radians(settings.rejection_deg)
+            k_fast = 0.0
+            if reject:
+                since = self._reject_since
+                if since is None:
+                    self._reject_since = since = stamp
+                still_for = STILL_RECOVERY_S if platform_moving is False \
+                    else STILL_RECOVERY_UNAIDED_S
+                if stamp - since > settings.rejection_timeout_s or (
+                        self.detector.still and stamp - since > still_for):
+                    reject = False   # trusted again: fast while still (stopped after a drift)
+                    k_fast = _alpha(dt, STILL_RECOVERY_TIME_CONSTANT_S) \
+                        if self.detector.still else 0.0
+            else:
+                self._reject_since = None
+            self._up_n += 1
+            k = 0.0 if reject else max(_alpha(dt, settings.gyro_time_constant_s), k_fast,
+                                       1.0 / self._up_n if self._up_n < 100 else 0.0)
+            if k > 0.0 and not still and self._up_n >= 100:
+                # Mahony's integral term: a steady innovation is a bias error
+                ki = dt / (BIAS_INTEGRAL_TIME_CONSTANT_S * settings.gyro_time_constant_s)
+                cx, cy, cz = iy * vz - iz * vy, iz * vx - ix * vz, ix * vy - iy * vx
+                b = self._bias
+                self._bias = (b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz)
+            vx, vy, vz = vx + k * ex, vy + k * ey, vz + k * ez
+            if still and not reject:
+                # at rest the still average is the best estimate (the gyro's noise would
+                # only add a random walk): the direction is taken from it
+                vx, vy, vz = out
+                self._p = r_var * shrink
+                k = 1.0
+            norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+            self._up = (vx / norm, vy / norm, vz / norm)
+            drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - self._bias_time)
+            s_b = self._bias_std + drift
+            if k < 1.0:
+                s = math.sqrt(self._p + (settings.gyro_noise_std_rad_s * dt) ** 2) + s_b * dt
+                self._p = (1.0 - k) ** 2 * s * s + k * k * r_var
+            self.rejecting = reject
+        vx, vy, vz = self._up
+        roll = math.atan2(vy, vz)
+        pitch = math.atan2(-vx, math.hypot(vy, vz))
+        extra = self.tilt.tilt_std_rad ** 2
+        if not self.rejecting:
+            ix, iy, iz = self._innovation
+            extra += ix * ix + iy * iy + iz * iz
+        variance = self._p + extra
+        self.mode = MODE_GYRO if not aided_by_odometry else f'{MODE_GYRO} + odometry'
+        return TiltEstimate(stamp, roll, pitch, force, (variance, 0.0, variance),
+                            accelerating or self.rejecting, magnitude)
