@@ -1,9 +1,10 @@
 """
-ADXL345 over I2C: device check, configuration, single and FIFO reads (pure, no ROS).
+ADXL345 over I2C or SPI: device check, configuration, single and FIFO reads (pure, no ROS).
 
-The bus is any object with smbus2's methods ``read_byte_data``,
-``write_byte_data`` and ``read_i2c_block_data`` (``smbus2.SMBus`` on hardware,
-:class:`~accelcal_ros.driver.register_sim.SimulatedAdxl345Bus` in tests). Readings are
+The bus is a :mod:`~accelcal_ros.driver.transport` (I2C: an object with smbus2's methods
+``read_byte_data``, ``write_byte_data`` and ``read_i2c_block_data``; SPI: spidev's
+``xfer2``), on hardware or the register-level simulation
+(:mod:`~accelcal_ros.driver.register_sim`); everything else is shared. Readings are
 returned in g (sensor frame as marked on the chip; the node maps nothing: mount the
 sensor with x forward, y left, z up or set ``frame_id`` to its real frame).
 
@@ -22,9 +23,13 @@ import struct
 from typing import Any, Deque, Optional, Tuple
 
 from accelcal_ros.driver import adxl345_registers as reg
+from accelcal_ros.driver.transport import devid_absent, I2cTransport, Transport
 from accelcal_ros.errors import DeviceError, InputError
 from accelcal_ros.sensor.datasheet import FULL_RES_G_PER_LSB
 import numpy as np
+
+FIFO_WATERMARK = 16
+"""FIFO_CTL samples bits: the watermark (entries) that raises the interrupt."""
 
 
 def open_smbus(bus_number: int) -> object:
@@ -47,67 +52,99 @@ def open_smbus(bus_number: int) -> object:
 
 
 class Adxl345:
-    """One ADXL345 on an smbus2-like ``bus`` at ``address``."""
+    """
+    One ADXL345: register map, configuration, sample and FIFO reads, on any transport.
+
+    ``bus`` is a :class:`~accelcal_ros.driver.transport.Transport` (I2C or SPI), or an
+    smbus2-like bus, which is wrapped in an :class:`~accelcal_ros.driver.transport.
+    I2cTransport` at ``address``.
+    """
 
     def __init__(self, bus: Any, address: int = 0x53, bus_number: Optional[int] = None) -> None:
-        if address not in reg.VALID_ADDRESSES:
-            raise InputError(f'i2c_address 0x{address:02X} is not an ADXL345 address '
-                             f'(0x53 with ALT ADDRESS low, 0x1D with it high)')
-        self.bus = bus
+        if isinstance(bus, Transport):
+            self.transport: Transport = bus
+        else:
+            if address not in reg.VALID_ADDRESSES:
+                raise InputError(f'i2c_address 0x{address:02X} is not an ADXL345 address '
+                                 f'(0x53 with ALT ADDRESS low, 0x1D with it high)')
+            self.transport = I2cTransport(bus, address, bus_number)
         self.address = address
         self.bus_number = bus_number
         self.rate_hz: Optional[float] = None
         self.range_g: Optional[int] = None
         self.fifo = False
+        self.watermark = FIFO_WATERMARK
 
     def _where(self):
-        bus = '?' if self.bus_number is None else self.bus_number
-        return f'I2C bus {bus}, address 0x{self.address:02X}'
+        return self.transport.where()
 
-    def check_device_id(self) -> None:
-        """Read DEVID; DeviceError naming bus, address and the value read unless 0xE5."""
+    def check_device_id(self) -> int:
+        """Read DEVID; DeviceError naming the bus, the device and the value read unless 0xE5."""
         try:
-            value = self.bus.read_byte_data(self.address, reg.DEVID)
+            value = self.transport.read_register(reg.DEVID)
         except OSError as exc:
             hint = ('no device answered' if exc.errno in (errno.ENXIO, errno.EREMOTEIO)
                     else exc.strerror or str(exc))
-            raise DeviceError(f'{self._where()}: cannot read DEVID ({hint}); check wiring, '
-                              'power and the address (0x53 or 0x1D)') from exc
+            raise DeviceError(f'{self._where()}: cannot read DEVID ({hint}); '
+                              f'{self.transport.absent_hint()}') from exc
         if value != reg.DEVID_VALUE:
+            if self.transport.kind == 'spi' and devid_absent(value):
+                raise DeviceError(f'{self._where()}: DEVID read 0x{value:02X}, expected 0xE5: '
+                                  f'{self.transport.absent_hint()}')
             raise DeviceError(f'{self._where()}: DEVID read 0x{value:02X}, expected 0xE5 '
                               '(not an ADXL345, or another device at this address)')
         return value
 
-    def configure(self, rate_hz: float, range_g: int, fifo: bool) -> None:
-        """Set output data rate, range (full resolution), FIFO mode, and start measuring."""
+    def configure(self, rate_hz: float, range_g: int, fifo: bool,
+                  watermark_interrupt: bool = False) -> None:
+        """
+        Set output data rate, range (full resolution), FIFO mode, and start measuring.
+
+        ``watermark_interrupt``: route the FIFO watermark (``watermark`` entries) to INT1,
+        active high (INT_MAP bit clear, INT_ENABLE.Watermark), for interrupt-driven reads.
+        """
         if float(rate_hz) not in reg.RATE_CODES:
             raise InputError(f'rate_hz {rate_hz} is not an ADXL345 output data rate '
                              f'({", ".join(f"{r:g}" for r in sorted(reg.RATE_CODES))})')
         if range_g not in reg.RANGE_CODES:
             raise InputError(f'range_g {range_g} is not one of 2, 4, 8, 16')
-        write = self.bus.write_byte_data
-        write(self.address, reg.POWER_CTL, 0x00)  # standby while configuring
-        write(self.address, reg.BW_RATE, reg.RATE_CODES[float(rate_hz)])
-        write(self.address, reg.DATA_FORMAT,
-              reg.DATA_FORMAT_FULL_RES | reg.RANGE_CODES[range_g])
-        write(self.address, reg.FIFO_CTL,
-              (reg.FIFO_MODE_STREAM | 16) if fifo else reg.FIFO_MODE_BYPASS)
-        write(self.address, reg.POWER_CTL, reg.POWER_CTL_MEASURE)
+        write = self.transport.write_register
+        write(reg.POWER_CTL, 0x00)  # standby while configuring
+        write(reg.INT_ENABLE, 0x00)
+        write(reg.BW_RATE, reg.RATE_CODES[float(rate_hz)])
+        write(reg.DATA_FORMAT, reg.DATA_FORMAT_FULL_RES | reg.RANGE_CODES[range_g])
+        write(reg.FIFO_CTL, (reg.FIFO_MODE_STREAM | self.watermark) if fifo
+              else reg.FIFO_MODE_BYPASS)
+        if watermark_interrupt:
+            write(reg.INT_MAP, 0x00)   # every interrupt on INT1
+            write(reg.INT_ENABLE, reg.INT_SOURCE_WATERMARK)
+        write(reg.POWER_CTL, reg.POWER_CTL_MEASURE)
         self.rate_hz, self.range_g, self.fifo = float(rate_hz), range_g, fifo
+
+    def set_self_test(self, enabled: bool) -> None:
+        """Set or clear DATA_FORMAT.SELF_TEST (the electrostatic force on the proof mass)."""
+        if self.range_g is None:
+            raise InputError('configure the ADXL345 before its self-test')
+        value = reg.DATA_FORMAT_FULL_RES | reg.RANGE_CODES[self.range_g]
+        self.transport.write_register(
+            reg.DATA_FORMAT, value | (reg.DATA_FORMAT_SELF_TEST if enabled else 0))
+
+    def read_counts(self) -> np.ndarray:
+        """Read x, y, z as raw LSB counts in one 6-byte transfer (little-endian int16)."""
+        data = self.transport.read_block(reg.DATAX0, 6)
+        return np.array(struct.unpack('<3h', bytes(data)), dtype=float)
 
     def read_sample(self) -> np.ndarray:
         """Read x, y, z (g) in one 6-byte block (little-endian int16, 3.9 mg/LSB)."""
-        data = self.bus.read_i2c_block_data(self.address, reg.DATAX0, 6)
-        return np.array(struct.unpack('<3h', bytes(data)), dtype=float) * FULL_RES_G_PER_LSB
+        return self.read_counts() * FULL_RES_G_PER_LSB
 
     def fifo_entries(self) -> int:
         """Return the number of samples waiting in the FIFO (FIFO_STATUS bits 5:0)."""
-        return self.bus.read_byte_data(self.address, reg.FIFO_STATUS) & reg.FIFO_ENTRIES_MASK
+        return self.transport.read_register(reg.FIFO_STATUS) & reg.FIFO_ENTRIES_MASK
 
     def overrun(self) -> bool:
         """Return True if the FIFO overran since the last check (INT_SOURCE.Overrun)."""
-        return bool(self.bus.read_byte_data(self.address, reg.INT_SOURCE)
-                    & reg.INT_SOURCE_OVERRUN)
+        return bool(self.transport.read_register(reg.INT_SOURCE) & reg.INT_SOURCE_OVERRUN)
 
     def read_fifo(self) -> Tuple[np.ndarray, bool]:
         """

@@ -5,16 +5,19 @@ Topics (relative): ``imu/data_raw`` (sensor_msgs/Imu, m/s^2, +9.8 on the up axis
 orientation and angular velocity covariance element 0 = -1: not provided; linear
 acceleration covariance from the datasheet noise model; sensor-data QoS),
 ``sim/attitude_truth`` (geometry_msgs/Vector3Stamped, x = roll, y = pitch in rad, sim
-backend only, same stamps) and ``/diagnostics`` (achieved rate, I2C errors, FIFO
-overruns, and with FIFO reads the sensor's measured output data rate, to which the
-stamps are disciplined). Samples are published from a dedicated thread paced by the source, so the
-executor's timers do not limit the rate. Parameters: :data:`~accelcal_ros.driver.params.
+backend only, same stamps) and ``/diagnostics`` (achieved rate, bus errors, FIFO
+overruns and the samples they lost, and with FIFO reads the sensor's measured output data
+rate, to which the stamps are disciplined). Service ``~/self_test`` (std_srvs/Trigger):
+the ADXL345's self-test, pass/fail per axis with the measured change. Samples are
+published from a dedicated thread paced by the source, so the executor's timers do not
+limit the rate. Parameters: :data:`~accelcal_ros.driver.params.
 DRIVER_PARAMS`.
 """
 import threading
 import time
 
 from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
+from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
@@ -27,6 +30,7 @@ from rclpy._rclpy_pybind11 import InvalidHandle, RCLError
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu
+from std_srvs.srv import Trigger
 
 
 class ImuDriverNode(Node):
@@ -37,6 +41,9 @@ class ImuDriverNode(Node):
         self.params = ParameterSet(self, DRIVER_PARAMS)
         self.source = make_source(self.params.values)
         self.source.start()
+        if getattr(self.source, 'rate_warning', ''):
+            self.get_logger().warning(self.source.rate_warning + ' (running anyway: '
+                                      'allow_unsustainable_rate is true)')
         backend = self.params['backend']
         self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
         self.truth_pub = (self.create_publisher(Vector3Stamped, 'sim/attitude_truth',
@@ -60,6 +67,7 @@ class ImuDriverNode(Node):
         self._thread = threading.Thread(target=self._publish_loop, daemon=True)
         self._thread.start()
         self.create_timer(self.params['diagnostics_period_s'], self._publish_diagnostics)
+        self.create_service(Trigger, '~/self_test', self._self_test)
         self.get_logger().info(
             f'publishing {backend} ADXL345 at {self.params["rate_hz"]:g} Hz on '
             f'{self.imu_pub.topic_name} (frame {self.params["frame_id"]})')
@@ -109,9 +117,13 @@ class ImuDriverNode(Node):
         nominal = self.params['rate_hz']
         status = DiagnosticStatus(name=f'{self.get_name()}: ADXL345 ({self.params["backend"]})',
                                   hardware_id=self._hardware_id())
+        bus = getattr(self.source, 'bus', 'I2C').upper()
         if stats.consecutive_errors >= 10:
             status.level, status.message = DiagnosticStatus.ERROR, \
-                f'I2C failing: {stats.last_error}; retrying with back-off'
+                f'{bus} failing: {stats.last_error}; retrying with back-off'
+        elif getattr(self.source, 'rate_warning', ''):
+            status.level, status.message = DiagnosticStatus.WARN, \
+                f'unsustainable rate, achieved {achieved:.1f} Hz: {self.source.rate_warning}'
         elif stats.finished:
             status.level, status.message = DiagnosticStatus.OK, 'replay finished'
         elif achieved < 0.9 * nominal:
@@ -122,6 +134,8 @@ class ImuDriverNode(Node):
         values = {'rate_hz_nominal': f'{nominal:g}', 'rate_hz_achieved': f'{achieved:.2f}',
                   'samples_published': str(count), 'i2c_errors': str(stats.io_errors),
                   'fifo_overruns': str(stats.fifo_overruns), 'last_error': stats.last_error}
+        if hasattr(self.source, 'diagnostic_values'):   # the ADXL345: bus, lost samples
+            values.update(self.source.diagnostic_values())
         if stats.measured_rate_hz == stats.measured_rate_hz:   # not NaN: FIFO reads
             values['output_data_rate_hz_measured'] = f'{stats.measured_rate_hz:.2f}'
             values['fifo_stamp_resyncs'] = str(stats.stamp_resyncs)
@@ -133,9 +147,27 @@ class ImuDriverNode(Node):
             self._finished_logged = True
             self.get_logger().info(f'replay finished after {count} samples')
 
+    def _self_test(self, request, response):
+        """``~/self_test`` (std_srvs/Trigger): the ADXL345's self-test, pass/fail per axis."""
+        if not hasattr(self.source, 'self_test'):
+            response.success = False
+            response.message = ('self-test needs the ADXL345 registers: backend i2c or spi, '
+                                f'or sim with sim.bus i2c|spi (this is {self.params["backend"]})')
+            return response
+        try:
+            result = self.source.self_test(self.params['supply_voltage_v'])
+        except (AccelcalError, OSError) as exc:
+            response.success, response.message = False, f'self-test not run: {exc}'
+            return response
+        response.success, response.message = result.passed, result.summary()
+        self.get_logger().info(result.summary())
+        return response
+
     def _hardware_id(self):
         if self.params['backend'] == 'i2c':
             return f'adxl345@i2c-{self.params["i2c_bus"]}:0x{self.params["i2c_address"]:02x}'
+        if self.params['backend'] == 'spi':
+            return f'adxl345@spi{self.params["spi_bus"]}.{self.params["spi_device"]}'
         return f'adxl345-{self.params["backend"]}'
 
     def close(self):

@@ -1,15 +1,19 @@
 """Parameters of the ``imu_driver`` node (pure: specifications and source construction)."""
-from typing import Any, Mapping, TYPE_CHECKING, Union
+from typing import Any, Mapping, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.driver import adxl345_registers as reg
+from accelcal_ros.driver import bus_timing
+from accelcal_ros.driver.adxl345 import Adxl345
 from accelcal_ros.driver.sim_sensor import poses_from_flat_list, SimulatedAdxl345
+from accelcal_ros.driver.transport import (I2cTransport, linux_bus_speed_hz, setup_spi,
+                                           SpiTransport)
 from accelcal_ros.errors import InputError
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.sensor.datasheet import OUTPUT_DATA_RATES_HZ, RANGES_G
 from accelcal_ros.sensor.model import PAPER_K500_BIAS, PAPER_K500_SCALE, SensorModel
 
 if TYPE_CHECKING:  # the sources are imported when one is built
-    from accelcal_ros.driver.sources import I2cSource, ReplaySource, SimSource
+    from accelcal_ros.driver.sources import Adxl345Source, ReplaySource, SimSource
 
 
 def _poses_reason(values):
@@ -24,14 +28,41 @@ def _non_empty(value):
     return None if value.strip() else 'must not be empty'
 
 
+def _speed_reason(value):
+    if value != 0.0 and value < bus_timing.BUS_MIN_HZ:
+        return f'0 (auto) or at least {bus_timing.BUS_MIN_HZ:g} Hz'
+    return None
+
+
+def _axes_reason(value):
+    return None if set(value) <= set('xyz') else 'letters of xyz only, e.g. "z"'
+
+
 DRIVER_PARAMS = (
-    ParamSpec('backend', 'i2c', 'Sample source: i2c (ADXL345 via smbus2), sim (simulated '
-              'ADXL345), replay (CSV recording t,ax,ay,az in s and m/s^2).',
-              choices=('i2c', 'sim', 'replay'), read_only=True),
+    ParamSpec('backend', 'i2c', 'Sample source: i2c (ADXL345 via smbus2), spi (ADXL345 via '
+              'spidev, 4-wire, mode 3), sim (simulated ADXL345; sim.bus chooses sample or '
+              'register level), replay (CSV recording t,ax,ay,az in s and m/s^2).',
+              choices=('i2c', 'spi', 'sim', 'replay'), read_only=True),
     ParamSpec('i2c_bus', 1, 'I2C bus number N of /dev/i2c-N.', minimum=0, maximum=255,
               read_only=True),
     ParamSpec('i2c_address', 0x53, 'ADXL345 I2C address: 0x53 (83, ALT ADDRESS low) or '
               '0x1D (29, ALT ADDRESS high).', choices=reg.VALID_ADDRESSES, read_only=True),
+    ParamSpec('spi_bus', 0, 'SPI bus B of /dev/spidevB.C (backend spi).', minimum=0,
+              maximum=255, read_only=True),
+    ParamSpec('spi_device', 0, 'SPI chip select C of /dev/spidevB.C (backend spi).',
+              minimum=0, maximum=255, read_only=True),
+    ParamSpec('bus_speed_hz', 0.0, 'Bus clock: 0 = what Linux says (I2C clock-frequency, SPI '
+              'spi-max-frequency of the device tree), else 100 kHz on I2C, 5 MHz on SPI. I2C: '
+              'used where Linux says nothing (the kernel sets the I2C clock); SPI: the clock '
+              'spidev asks for; sim: the simulated bus clock. ADXL345 limits: I2C 400 kHz, SPI '
+              '5 MHz.', kind='double', minimum=0.0, maximum=5e6, validator=_speed_reason,
+              read_only=True, unit='Hz'),
+    ParamSpec('allow_unsustainable_rate', False, 'Run a rate_hz the bus cannot sustain '
+              '(datasheet rule, bus time) instead of refusing; the achieved rate and the '
+              'lost samples are then reported in /diagnostics.', read_only=True),
+    ParamSpec('supply_voltage_v', 3.3, 'ADXL345 supply voltage VS: scales the self-test '
+              'limits (datasheet Table 14).', minimum=2.0, maximum=3.6, read_only=True,
+              unit='V'),
     ParamSpec('range_g', 16, 'Measurement range +-g (full resolution: 3.9 mg/LSB at every '
               'range; a larger range only moves saturation).', choices=RANGES_G,
               read_only=True, unit='g'),
@@ -62,6 +93,13 @@ DRIVER_PARAMS = (
               maximum=0.1, read_only=True, unit='rad'),
     ParamSpec('sim.noise_scale', 1.0, 'Multiplier of the datasheet noise of the simulated '
               'sensor (0: noise-free).', minimum=0.0, maximum=100.0, read_only=True),
+    ParamSpec('sim.bus', 'none', 'Simulation level: none (sample-level sensor, no bus), i2c '
+              'or spi (register-level ADXL345 whose every transaction costs its time on the '
+              'wire at bus_speed_hz, driven by the same code as the real buses).',
+              choices=('none', 'i2c', 'spi'), read_only=True),
+    ParamSpec('sim.self_test_broken_axes', '', 'Axes (letters of xyz) whose simulated '
+              'self-test force is missing (a broken sensor); empty: healthy.',
+              validator=_axes_reason, read_only=True),
     ParamSpec('replay.file', '', 'CSV recording to publish (backend replay).', read_only=True),
     ParamSpec('replay.realtime', True, 'Replay with the recorded timing (false: as fast as '
               'possible).', read_only=True),
@@ -70,24 +108,110 @@ DRIVER_PARAMS = (
 )
 
 
-def make_source(values: Mapping[str, Any]
-                ) -> Union['SimSource', 'ReplaySource', 'I2cSource']:
-    """Build the sample source for validated parameter ``values`` (may raise DeviceError)."""
-    from accelcal_ros.driver.sources import I2cSource, ReplaySource, SimSource
+DEFAULT_SPEED_HZ = {'i2c': 100_000.0, 'spi': 5_000_000.0}
+"""Bus clock where neither Linux nor bus_speed_hz says (Raspberry Pi I2C default; SPI max)."""
+
+
+def bus_speed_hz(values: Mapping[str, Any], sysfs: str = '/sys') -> Tuple[str, float]:
+    """
+    Return ``(bus, clock in Hz)`` for the i2c, spi or register-level sim backend.
+
+    I2C: Linux's ``clock-frequency`` where the device tree gives it (the kernel, not
+    userspace, sets it), else ``bus_speed_hz``, else 100 kHz. SPI: ``bus_speed_hz`` or
+    5 MHz, lowered to the device tree's ``spi-max-frequency``. Sim: ``bus_speed_hz`` or the
+    bus's default. InputError when the clock is outside the ADXL345's range.
+    """
+    backend = values['backend']
+    bus = values['sim.bus'] if backend == 'sim' else backend
+    speed = float(values['bus_speed_hz']) or DEFAULT_SPEED_HZ[bus]
+    if backend == 'i2c':
+        linux = linux_bus_speed_hz('i2c', values['i2c_bus'], sysfs=sysfs)
+        speed = linux or float(values['bus_speed_hz']) or DEFAULT_SPEED_HZ['i2c']
+    elif backend == 'spi':
+        linux = linux_bus_speed_hz('spi', values['spi_bus'], values['spi_device'], sysfs)
+        if linux is not None and linux < speed:
+            speed = linux
+    reason = bus_timing.check_speed(bus, speed)
+    if reason:
+        raise InputError(reason)
+    return bus, speed
+
+
+def use_fifo(values: Mapping[str, Any]) -> bool:
+    """Stream mode per the ``fifo`` parameter (auto: above 100 Hz)."""
+    return {'always': True, 'never': False}.get(values['fifo'], values['rate_hz'] > 100.0)
+
+
+def check_rate(values: Mapping[str, Any], bus: str, speed: float) -> str:
+    """
+    Return the reason ``rate_hz`` is not sustainable ('' if it is).
+
+    Raises InputError with it unless ``allow_unsustainable_rate`` (then the node warns).
+    """
+    reason = bus_timing.check_rate(bus, speed, values['rate_hz'], use_fifo(values)) or ''
+    if reason and not values['allow_unsustainable_rate']:
+        raise InputError(reason + ' (allow_unsustainable_rate:=true runs it anyway)')
+    return reason
+
+
+def make_register_sim(values: Mapping[str, Any], sensor: SimulatedAdxl345, bus: str,
+                      speed: float) -> Any:
+    """Return the register-level simulated ADXL345 on ``bus`` (healthy or broken axes)."""
+    from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus, SimulatedAdxl345Spi
+    from accelcal_ros.driver.selftest import self_test_scale
+
+    shift = [0.0 if axis in values['sim.self_test_broken_axes'] else 1.0 for axis in 'xyz']
+    scale = self_test_scale(values['supply_voltage_v']) * shift
+    if bus == 'spi':
+        device = SimulatedAdxl345Spi(sensor, self_test_scale=scale)
+        setup_spi(device, speed)   # as open_spidev does on hardware
+        return device
+    return SimulatedAdxl345Bus(sensor, address=values['i2c_address'], bus_speed_hz=speed,
+                               self_test_scale=scale)
+
+
+def make_source(values: Mapping[str, Any], sysfs: str = '/sys'
+                ) -> Union['SimSource', 'ReplaySource', 'Adxl345Source']:
+    """
+    Build the sample source for validated parameter ``values`` (may raise DeviceError).
+
+    For the ADXL345 backends (i2c, spi, sim on a bus) the rate is checked against the
+    bus first (:func:`check_rate`); the source's ``rate_warning`` holds the reason when
+    ``allow_unsustainable_rate`` runs it anyway.
+    """
+    from accelcal_ros.driver.sources import Adxl345Source, ReplaySource, SimSource
 
     backend = values['backend']
     rate = values['rate_hz']
+    if backend in ('i2c', 'spi') or (backend == 'sim' and values['sim.bus'] != 'none'):
+        bus, speed = bus_speed_hz(values, sysfs)
+        warning = check_rate(values, bus, speed)
     if backend == 'sim':
         truth = SensorModel(values['sim.scale'], values['sim.bias'], values['sim.misalignment'])
         sensor = SimulatedAdxl345(truth, rate, values['range_g'],
                                   poses_from_flat_list(values['sim.poses_deg']),
                                   values['sim.dwell_s'], values['sim.move_s'], values['seed'],
                                   values['sim.noise_scale'])
-        return SimSource(sensor)
+        if values['sim.bus'] == 'none':
+            return SimSource(sensor)
+        chip = make_register_sim(values, sensor, bus, speed)
+        transport = (SpiTransport(chip, values['spi_bus'], values['spi_device']) if bus == 'spi'
+                     else I2cTransport(chip, values['i2c_address'], values['i2c_bus']))
+        source = Adxl345Source(Adxl345(transport), rate, values['range_g'], use_fifo(values),
+                               bus_speed_hz=speed)
+        source.sim_chip = chip
+        source.rate_warning = warning
+        return source
     if backend == 'replay':
         if not values['replay.file']:
             raise InputError('backend replay needs replay.file (a CSV t,ax,ay,az)')
         return ReplaySource(values['replay.file'], values['replay.realtime'])
-    use_fifo = {'always': True, 'never': False}.get(values['fifo'], rate > 100.0)
-    return I2cSource.from_bus_number(values['i2c_bus'], values['i2c_address'], rate,
-                                     values['range_g'], use_fifo)
+    if backend == 'spi':
+        source = Adxl345Source.from_spi(values['spi_bus'], values['spi_device'], speed, rate,
+                                        values['range_g'], use_fifo(values))
+    else:
+        source = Adxl345Source.from_bus_number(values['i2c_bus'], values['i2c_address'],
+                                               rate, values['range_g'], use_fifo(values),
+                                               bus_speed_hz=speed)
+    source.rate_warning = warning
+    return source

@@ -1,5 +1,5 @@
 """
-Sample sources behind the driver node: simulated sensor, ADXL345 over I2C, CSV replay.
+Sample sources behind the driver node: simulated sensor, ADXL345 (I2C or SPI), CSV replay.
 
 Every source has the same polling interface (pure, no ROS):
 
@@ -11,11 +11,15 @@ Every source has the same polling interface (pure, no ROS):
 - ``stats``: counters for diagnostics.
 """
 from dataclasses import dataclass, field
+import threading
 import time
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Dict, Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
+from accelcal_ros.driver.bus_timing import fifo_poll_period_s
+from accelcal_ros.driver.selftest import run_self_test, SelfTestResult
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
+from accelcal_ros.driver.transport import open_spidev, SpiTransport
 from accelcal_ros.sensor.recording import load_recording
 from accelcal_ros.sensor.units import mps2_to_g
 import numpy as np
@@ -101,56 +105,93 @@ class SimSource:
         return Batch(self._t0 + sim_t, samples, np.stack([roll, pitch], axis=1))
 
 
-class I2cSource:
+class Adxl345Source:
     """
-    An ADXL345 on I2C, read per sample (bypass) or by draining the FIFO (stream).
+    An ADXL345 on I2C or SPI, read per sample (bypass) or by draining the FIFO (stream).
 
-    On an I/O error the source backs off exponentially (``min_backoff_s`` doubling up to
+    The transport (:mod:`~accelcal_ros.driver.transport`) is the only difference between
+    the buses; the reads, the error handling and the stamps are this class's. On an I/O
+    error the source backs off exponentially (``min_backoff_s`` doubling up to
     ``max_backoff_s``), counts the error and returns nothing for that poll; it never
     fabricates a sample. FIFO overruns (samples lost while the bus was unavailable or the
-    host too slow) are counted.
+    host too slow) are counted, and the samples lost estimated from the time between reads.
+
+    ``interrupt``: an object with ``wait_edge(timeout_s) -> Optional[float]`` (the FIFO
+    watermark on INT1, the edge's time on ``clock``'s base, or None on a time-out). Each
+    poll then waits for the edge, and the batch's stamps are disciplined to the edge time
+    (the watermark-th sample was taken then) instead of the read time.
     """
 
     def __init__(self, device: Adxl345, rate_hz: float, range_g: int, use_fifo: bool,
                  clock: Callable[[], float] = time.time, min_backoff_s: float = 0.002,
-                 max_backoff_s: float = 0.5) -> None:
+                 max_backoff_s: float = 0.5, bus_speed_hz: Optional[float] = None,
+                 interrupt: Any = None) -> None:
         self.device = device
         self.rate_hz = float(rate_hz)
         self.range_g = range_g
-        self.use_fifo = use_fifo
+        self.use_fifo = use_fifo or interrupt is not None
         self.clock = clock
         self.min_backoff_s = min_backoff_s
         self.max_backoff_s = max_backoff_s
+        self.bus_speed_hz = bus_speed_hz
+        self.interrupt = interrupt
         self.period = 1.0 / self.rate_hz
-        # drain often enough that a batch stays small (sensor-data subscribers keep only
-        # 5 messages: a burst larger than that can be dropped by a slow subscriber), and
-        # at least every 20 ms, far from the FIFO's 32 entries
-        self.poll_period = min(max(2 * self.period, 0.0025), 0.02) if use_fifo \
-            else self.period
+        self.poll_period = fifo_poll_period_s(self.rate_hz) if self.use_fifo else self.period
         self.stats = SourceStats()
+        self.lost_samples = 0
+        self.sim_chip: Any = None
+        self.rate_warning = ''
+        self.lock = threading.Lock()
         self._stamper = FifoTimestamper(self.rate_hz)
         self._next_poll = 0.0   # set by start()
+        self._last_read: Optional[float] = None
         self._backoff = 0.0
 
     @classmethod
     def from_bus_number(cls, bus_number: int, address: int, rate_hz: float, range_g: int,
-                        use_fifo: bool, **kwargs: Any) -> 'I2cSource':
+                        use_fifo: bool, **kwargs: Any) -> 'Adxl345Source':
         """Open ``/dev/i2c-<bus_number>`` and wrap the ADXL345 at ``address``."""
         bus = open_smbus(bus_number)
         return cls(Adxl345(bus, address, bus_number), rate_hz, range_g, use_fifo, **kwargs)
 
+    @classmethod
+    def from_spi(cls, bus_number: int, chip_select: int, speed_hz: float, rate_hz: float,
+                 range_g: int, use_fifo: bool, **kwargs: Any) -> 'Adxl345Source':
+        """Open ``/dev/spidev<bus>.<cs>`` (mode 3, ``speed_hz``) and wrap the ADXL345 on it."""
+        spi = open_spidev(bus_number, chip_select, speed_hz)
+        device = Adxl345(SpiTransport(spi, bus_number, chip_select))
+        return cls(device, rate_hz, range_g, use_fifo, bus_speed_hz=speed_hz, **kwargs)
+
+    @property
+    def bus(self) -> str:
+        """``i2c`` or ``spi``."""
+        return self.device.transport.kind
+
     def start(self) -> None:
         """Check DEVID and configure the device (DeviceError if it is not an ADXL345)."""
-        self.device.check_device_id()
-        self.device.configure(self.rate_hz, self.range_g, self.use_fifo)
-        self._next_poll = self.clock() + self.period
+        with self.lock:
+            self.device.check_device_id()
+            self.device.configure(self.rate_hz, self.range_g, self.use_fifo,
+                                  watermark_interrupt=self.interrupt is not None)
+            self._stamper.restart()
+            self._last_read = self.clock()   # the FIFO fills from now on
+            self._next_poll = self._last_read + self.period
 
     def next_poll_time(self) -> float:
         """Return when to poll next (later while backing off after errors)."""
         return self._next_poll
 
+    def _wait_edge(self):
+        """Return the interrupt's edge time, or None (time-out: drain anyway, as polling)."""
+        return self.interrupt.wait_edge(max(4 * self.poll_period, 0.05))
+
     def poll(self) -> 'Batch':
         """Read what is available; an I/O error gives an empty batch and a back-off."""
+        edge = self._wait_edge() if self.interrupt is not None else None
+        with self.lock:
+            return self._poll(edge)
+
+    def _poll(self, edge):
         now = self.clock()
         try:
             if self.use_fifo:
@@ -159,26 +200,64 @@ class I2cSource:
                     self.stats.fifo_overruns += 1
                     self._stamper.restart()  # samples were lost: restart the stamp chain
             else:
-                samples = self.device.read_sample()[None, :]
+                samples, overrun = self.device.read_sample()[None, :], False
         except OSError as exc:
             self.stats.io_errors += 1
             self.stats.consecutive_errors += 1
             self.stats.last_error = f'{exc.strerror or exc} (errno {exc.errno})'
             self._backoff = min(max(2 * self._backoff, self.min_backoff_s), self.max_backoff_s)
             self._next_poll = now + self._backoff
+            self._last_read = None
             return Batch.empty()
         self._backoff = 0.0
         self.stats.consecutive_errors = 0
         t_read = self.clock()
+        if overrun and self._last_read is not None:
+            expected = (t_read - self._last_read) * self.rate_hz
+            self.lost_samples += max(0, int(round(expected)) - len(samples))
+        self._last_read = t_read
         if self.use_fifo:
-            stamps = self._stamper.stamps(len(samples), t_read)
+            t_last = t_read
+            if edge is not None and len(samples) >= self.device.watermark:
+                t_last = min(t_read, edge + (len(samples) - self.device.watermark) * self.period)
+            stamps = self._stamper.stamps(len(samples), t_last)
             self.stats.measured_rate_hz = self._stamper.measured_rate_hz
             self.stats.stamp_resyncs = self._stamper.resyncs
         else:
             stamps = np.array([t_read])
         self.stats.samples += len(samples)
-        self._next_poll = max(self._next_poll + self.poll_period, now)
+        self._next_poll = now if self.interrupt is not None \
+            else max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)
+
+    def diagnostic_values(self) -> Dict[str, str]:
+        """Bus, clock and loss figures for ``/diagnostics``."""
+        values = {'bus': self.bus, 'fifo_lost_samples_estimated': str(self.lost_samples),
+                  'reads': 'interrupt (INT1 watermark)' if self.interrupt is not None
+                  else 'polling'}
+        if self.bus_speed_hz:
+            values['bus_speed_hz'] = f'{self.bus_speed_hz:g}'
+        chip = self.sim_chip
+        if chip is not None:   # the simulation's truth: what the chip's FIFO dropped
+            values['sim_fifo_dropped_samples'] = str(chip.dropped)
+            values['sim_samples_generated'] = str(chip.generated)
+            values['sim_bus_busy_s'] = f'{chip.busy_s:.3f}'
+        return values
+
+    def self_test(self, supply_voltage_v: float, **kwargs: Any) -> 'SelfTestResult':
+        """Run the datasheet self-test (streaming pauses), then resume streaming."""
+        with self.lock:
+            try:
+                return run_self_test(self.device, supply_voltage_v, **kwargs)
+            finally:
+                self.device.configure(self.rate_hz, self.range_g, self.use_fifo,
+                                      watermark_interrupt=self.interrupt is not None)
+                self._stamper.restart()
+                self._last_read = None
+
+
+I2cSource = Adxl345Source
+"""The ADXL345 source (the name from the I2C-only driver; SPI uses the same class)."""
 
 
 class ReplaySource:
