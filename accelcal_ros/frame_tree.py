@@ -210,26 +210,49 @@ def calibration_transforms(names: FrameNames = FrameNames(),
     out = [FrameTransform(names.base, names.imu, rotation_from_rpy_radians(*np.radians(rpy)),
                           np.asarray(mount_xyz_m, dtype=float))]
     if rig is not None:
-        mount = imu_to_camera if imu_to_camera is not None else rig.imu_to_camera
-        m = np.asarray(DEFAULT_IMU_TO_CAMERA if mount is None else mount, dtype=float)
-        m = rotation_matrix_from_list(m.reshape(-1), 'imu_to_camera', tolerance=1e-4)
-        translations = dict(camera_translations_m or {})
-        unknown = sorted(set(translations) - set(rig.names))
-        if unknown:
-            raise InputError(f'camera translations for unknown camera(s) {unknown}')
-        ref = names.camera(check_frame_id(rig.cameras[0].name, 'camera 0 name'))
-        out.append(FrameTransform(names.imu, ref, m.T, np.zeros(3)))
-        for index, cam in enumerate(rig.cameras[1:], start=1):
-            frame = names.camera(check_frame_id(cam.name, f'camera {index} name'))
-            t_0i = np.asarray(translations.get(cam.name, np.zeros(3)), dtype=float)
-            out.append(FrameTransform(ref, frame, cam.R.T, -cam.R.T @ t_0i.reshape(-1)))
+        out += camera_transforms(names, rig, imu_to_camera, camera_translations_m)
     if boresight is not None:
-        out.append(FrameTransform(names.imu, names.lidar, np.asarray(boresight, dtype=float),
-                                  np.asarray(lever_arm_m, dtype=float)))
+        out.append(lidar_transform(names, boresight, lever_arm_m))
     root = check_tree(out)
     if root != names.base:   # only reachable through a camera named like the base frame
         raise InputError(f'the tree is rooted at {root!r}, not {names.base!r}')
     return out
+
+
+def camera_transforms(names: FrameNames, rig: Rig, imu_to_camera: Optional[ArrayLike] = None,
+                      camera_translations_m: Optional[Dict[str, ArrayLike]] = None
+                      ) -> List[FrameTransform]:
+    """
+    ``imu`` -> reference camera -> every other camera, from a rig (see the module docstring).
+
+    ``imu_to_camera`` overrides the rig file's (else
+    :data:`~accelcal_ros.frames.DEFAULT_IMU_TO_CAMERA`); ``camera_translations_m`` maps a
+    camera name to its ``t_0i`` (m; zero where absent).
+    """
+    check_frame_id(names.imu, 'IMU frame')
+    mount = imu_to_camera if imu_to_camera is not None else rig.imu_to_camera
+    m = np.asarray(DEFAULT_IMU_TO_CAMERA if mount is None else mount, dtype=float)
+    m = rotation_matrix_from_list(m.reshape(-1), 'imu_to_camera', tolerance=1e-4)
+    translations = dict(camera_translations_m or {})
+    unknown = sorted(set(translations) - set(rig.names))
+    if unknown:
+        raise InputError(f'camera translations for unknown camera(s) {unknown}')
+    ref = names.camera(check_frame_id(rig.cameras[0].name, 'camera 0 name'))
+    out = [FrameTransform(names.imu, ref, m.T, np.zeros(3))]
+    for index, cam in enumerate(rig.cameras[1:], start=1):
+        frame = names.camera(check_frame_id(cam.name, f'camera {index} name'))
+        t_0i = np.asarray(translations.get(cam.name, np.zeros(3)), dtype=float)
+        out.append(FrameTransform(ref, frame, cam.R.T, -cam.R.T @ t_0i.reshape(-1)))
+    check_tree(out)
+    return out
+
+
+def lidar_transform(names: FrameNames, boresight: ArrayLike,
+                    lever_arm_m: ArrayLike = (0.0, 0.0, 0.0)) -> FrameTransform:
+    """``imu`` -> ``lidar``: the boresight (LiDAR -> IMU) and the lever arm (m, IMU frame)."""
+    return FrameTransform(check_frame_id(names.imu, 'IMU frame'),
+                          check_frame_id(names.lidar, 'LiDAR frame'),
+                          np.asarray(boresight, dtype=float), np.asarray(lever_arm_m, dtype=float))
 
 
 def _frame_id_reason(value: str) -> Optional[str]:
@@ -244,6 +267,31 @@ def _suffix_reason(value: str) -> Optional[str]:
     return _frame_id_reason('cam' + value)
 
 
+FRAME_NAME_PARAMS = (
+    ParamSpec('base_frame', 'base_link', 'root frame (REP-105)', validator=_frame_id_reason),
+    ParamSpec('imu_frame', 'imu_link', 'the accelerometer frame', validator=_frame_id_reason),
+    ParamSpec('lidar_frame', 'lidar_link', 'the LiDAR frame', validator=_frame_id_reason),
+    ParamSpec('camera_frame_suffix', OPTICAL_SUFFIX, 'camera frame = camera name + this '
+              '(REP-103 optical frame)', validator=_suffix_reason),
+)
+"""The frame-name parameters; nodes that publish a part of the tree declare a subset."""
+
+
+def frame_name_params(*names: str) -> Tuple[ParamSpec, ...]:
+    """Return the :data:`FRAME_NAME_PARAMS` called ``names`` (in that order)."""
+    by_name = {spec.name: spec for spec in FRAME_NAME_PARAMS}
+    return tuple(by_name[name] for name in names)
+
+
+def names_from_values(values: Dict[str, Any]) -> FrameNames:
+    """Return :class:`FrameNames` from parameter values (absent names keep their default)."""
+    default = FrameNames()
+    return FrameNames(values.get('base_frame', default.base),
+                      values.get('imu_frame', default.imu),
+                      values.get('lidar_frame', default.lidar),
+                      values.get('camera_frame_suffix', default.camera_suffix))
+
+
 CALIBRATION_FRAMES_PARAMS = (
     ParamSpec('rig_file', '', 'rig YAML (cameras, R_0i, imu_to_camera): the camera frames; '
               'empty = no cameras'),
@@ -256,21 +304,11 @@ CALIBRATION_FRAMES_PARAMS = (
     ParamSpec('imu_mount_rpy_deg', [0.0, 0.0, 0.0], 'IMU axes in the base frame (roll pitch '
               'yaw, REP-103 fixed axes)', lengths=(3,), minimum=-180.0, maximum=180.0,
               unit='deg'),
-    ParamSpec('base_frame', 'base_link', 'root frame (REP-105)', validator=_frame_id_reason),
-    ParamSpec('imu_frame', 'imu_link', 'the accelerometer frame', validator=_frame_id_reason),
-    ParamSpec('lidar_frame', 'lidar_link', 'the LiDAR frame', validator=_frame_id_reason),
-    ParamSpec('camera_frame_suffix', OPTICAL_SUFFIX, 'camera frame = camera name + this '
-              '(REP-103 optical frame)', validator=_suffix_reason),
+    *FRAME_NAME_PARAMS,
     ParamSpec('poll_period_s', 1.0, 'how often the files are checked for a new calibration',
               minimum=0.1, maximum=60.0, unit='s', read_only=True),
 )
 """Every parameter of the ``calibration_frames`` node (see config/calibration_frames.yaml)."""
-
-
-def names_from_parameters(values: Dict[str, Any]) -> FrameNames:
-    """Return the :class:`FrameNames` of ``calibration_frames`` parameter values."""
-    return FrameNames(values['base_frame'], values['imu_frame'], values['lidar_frame'],
-                      values['camera_frame_suffix'])
 
 
 def transforms_from_parameters(values: Dict[str, Any]) -> List[FrameTransform]:
@@ -286,6 +324,6 @@ def transforms_from_parameters(values: Dict[str, Any]) -> List[FrameTransform]:
 
     rig = load_rig(values['rig_file']) if values['rig_file'] else None
     boresight = load_boresight(values['boresight_file']) if values['boresight_file'] else None
-    return calibration_transforms(names_from_parameters(values), values['imu_mount_xyz_m'],
+    return calibration_transforms(names_from_values(values), values['imu_mount_xyz_m'],
                                   values['imu_mount_rpy_deg'], rig, boresight=boresight,
                                   lever_arm_m=values['lidar_lever_arm_m'])

@@ -10,8 +10,9 @@ a position automatically each time the rig rests (:mod:`accelcal_ros.lidar.captu
 on ``lidar_calibration/capture`` (std_srvs/Trigger). ``lidar_calibration/finish``
 (Trigger) solves the boresight (:func:`accelcal_ros.lidar.boresight.calibrate_boresight`)
 and writes ``output_file`` (YAML: ``R`` row-major LiDAR -> IMU, ``rpy_deg``,
-``per_position_error_deg``, ``holdout_error_deg``, ...). Publishes nothing; the service
-answers carry the result.
+``per_position_error_deg``, ``holdout_error_deg``, ...), then publishes ``imu_frame`` ->
+``lidar_frame`` (the boresight and ``lever_arm_m``) on ``/tf_static`` as
+``calibration_frames`` does; the service answers carry the result.
 """
 import threading
 
@@ -21,6 +22,7 @@ from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.rosutil.static_tf import StaticBroadcaster
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -59,6 +61,7 @@ class LidarCalibrationNode(Node):
         self.create_subscription(PointCloud2, 'points', self._on_cloud, points_qos)
         self.create_service(Trigger, 'lidar_calibration/capture', self._on_capture)
         self.create_service(Trigger, 'lidar_calibration/finish', self._on_finish)
+        self._tf = StaticBroadcaster(self)
         self.get_logger().info('waiting for the rig to rest (auto capture '
                                f'{"on" if self.params["auto_capture"] else "off"})')
 
@@ -135,6 +138,7 @@ class LidarCalibrationNode(Node):
         return response
 
     def _on_finish(self, request, response):
+        from accelcal_ros.frame_tree import lidar_transform, names_from_values
         from accelcal_ros.frames import rotation_from_rpy_radians
         from accelcal_ros.lidar.boresight import calibrate_boresight
         from accelcal_ros.lidar.calibrate_dir import report_lines, write_result
@@ -156,6 +160,8 @@ class LidarCalibrationNode(Node):
         try:
             result = calibrate_boresight(positions, prior, search, p['weighting'])
             write_result(p['output_file'], result)
+            self._tf.send([lidar_transform(names_from_values(p), result.rotation,
+                                           p['lever_arm_m'])])
         except (AccelcalError, OSError) as exc:
             response.success = False
             response.message = f'calibration failed: {exc}'

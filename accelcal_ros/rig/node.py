@@ -9,7 +9,9 @@ with the board in view (:class:`accelcal_ros.rig.capture.RigCapture`), or on
 calibrates the captured poses and writes ``output_file`` (the stitcher's rig file with
 ``imu_to_camera``), its report and plot. ``rig_calibration/status`` (std_msgs/String,
 YAML) says per camera how many views and how much of the image they cover, per pair how
-many shared views, and what to do next.
+many shared views, and what to do next. After finish, ``imu_frame`` -> the reference
+camera's optical frame -> every other camera's is published on ``/tf_static`` (from the
+rig file written, as ``calibration_frames`` reads it).
 """
 import threading
 
@@ -20,6 +22,7 @@ from accelcal_ros.rosutil.images import image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.rosutil.static_tf import StaticBroadcaster
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -58,6 +61,7 @@ class RigCalibrationNode(Node):
         self.create_service(Trigger, 'rig_calibration/capture', self._on_capture)
         self.create_service(Trigger, 'rig_calibration/finish', self._on_finish)
         self._status = self.create_publisher(String, 'rig_calibration/status', 10)
+        self._tf = StaticBroadcaster(self)
         self.create_timer(p['status_period_s'], self._publish_status)
         self._warned = set()
 
@@ -104,6 +108,8 @@ class RigCalibrationNode(Node):
         return response
 
     def _on_finish(self, request, response):
+        from accelcal_ros.camera.rig import load_rig
+        from accelcal_ros.frame_tree import camera_transforms, names_from_values
         from accelcal_ros.rig.report import report_lines, write_outputs
 
         p = dict(self.params.values)
@@ -111,6 +117,7 @@ class RigCalibrationNode(Node):
             with self._lock:
                 result = self._capture.finish(p['reference'] or None, self._model)
             paths = write_outputs(p['output_file'], result)
+            self._tf.send(camera_transforms(names_from_values(p), load_rig(paths[0])))
         except (AccelcalError, OSError) as exc:
             response.success = False
             response.message = f'calibration failed: {exc}'

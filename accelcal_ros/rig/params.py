@@ -1,6 +1,7 @@
 """Parameters of the ``rig_calibration`` node (pure specifications)."""
 from typing import List, Optional
 
+from accelcal_ros.frame_tree import frame_name_params
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.rig.board import parse_board_size
 
@@ -42,4 +43,5 @@ RIG_CALIBRATION_PARAMS = (
               maximum=30.0, unit='s'),
     ParamSpec('status_period_s', 1.0, 'period of the rig_calibration/status message',
               minimum=0.1, maximum=60.0, unit='s', read_only=True),
+    *frame_name_params('imu_frame', 'camera_frame_suffix'),
 )
