@@ -33,6 +33,7 @@ setup(
             'lidar_calibration = accelcal_ros.lidar.calibration_node:main',
             'rig_calibration = accelcal_ros.rig.node:main',
             'cloud_assembler = accelcal_ros.lidar.assembler_node:main',
+            'calibration_frames = accelcal_ros.calibration_frames_node:main',
             'accelcal = accelcal_ros.cli:main',
         ],
     },

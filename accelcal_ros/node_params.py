@@ -20,6 +20,7 @@ NODE_PARAMS: Dict[str, Tuple[str, str]] = {
     'lidar_calibration': ('accelcal_ros.lidar.params', 'LIDAR_CALIBRATION_PARAMS'),
     'cloud_assembler': ('accelcal_ros.lidar.params', 'CLOUD_ASSEMBLER_PARAMS'),
     'rig_calibration': ('accelcal_ros.rig.params', 'RIG_CALIBRATION_PARAMS'),
+    'calibration_frames': ('accelcal_ros.frame_tree', 'CALIBRATION_FRAMES_PARAMS'),
 }
 """Node (and executable) name -> (module, attribute) of its ParamSpec list."""
 

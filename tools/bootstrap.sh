@@ -44,6 +44,35 @@ if [ ! -f "$venv/.accelcal-req" ] || [ "$(cat "$venv/.accelcal-req")" != "$req_h
   echo "$req_hash" > "$venv/.accelcal-req"
 fi
 
+# tf2_msgs is no PyPI wheel: generate its TFMessage (tools/interfaces/tf2_msgs, the same
+# definition and type hash as ROS 2's) with the rosidl wheels into the same install/.
+# Needs a C/C++ compiler and the Python headers (installed here as root with apt-get, as
+# python3-venv above); rebuilt only when the interface files or the venv changed.
+tf2_hash=$( { echo "$req_hash"; find tools/interfaces -type f | sort | xargs cat; } | sha256sum | cut -c1-16)
+if [ ! -f "$install/.accelcal-tf2_msgs" ] || [ "$(cat "$install/.accelcal-tf2_msgs")" != "$tf2_hash" ]; then
+  need=()
+  command -v c++ >/dev/null && command -v cc >/dev/null || need+=(g++)
+  "$venv/bin/python" -c 'import os, sysconfig, sys
+sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")) else 1)' \
+    || need+=(python3-dev)
+  if [ ${#need[@]} -gt 0 ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+      apt-get update -qq && apt-get install -y -qq "${need[@]}" >/dev/null
+    else
+      echo "bootstrap: building tf2_msgs needs ${need[*]} (apt-get install ${need[*]})" >&2; exit 2
+    fi
+  fi
+  echo "bootstrap: generating tf2_msgs ($profile)"
+  rm -rf "$build/tf2_msgs" "$install/tf2_msgs"
+  ( source "$venv/bin/activate"
+    export AMENT_PREFIX_PATH="$venv"  # where the generators' ament index is
+    colcon --log-base "$root/log" build --paths "$root/tools/interfaces/tf2_msgs" \
+        --build-base "$build" --install-base "$install" \
+        --event-handlers console_cohesion- summary- >/dev/null 2>&1 ) || {
+    echo "bootstrap: generating tf2_msgs failed; see $root/log/latest_build" >&2; exit 1; }
+  echo "$tf2_hash" > "$install/.accelcal-tf2_msgs"
+fi
+
 # colcon: rebuild only when what it installs changed (sources are symlinked).
 build_hash=$( { cat setup.py setup.cfg package.xml; ls config launch resource;
                 find accelcal_ros -name '*.py' | sort; } | sha256sum | cut -c1-16)

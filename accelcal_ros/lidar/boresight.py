@@ -33,12 +33,13 @@ from dataclasses import dataclass, field
 import os
 from typing import Any, Dict, List, Optional, Sequence, Union
 
+from accelcal_ros.boresight_file import load_boresight  # noqa: F401 - its home is the ground floor
 from accelcal_ros.errors import CalibrationError, GeometryError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list, rpy_radians_from_rotation
 from accelcal_ros.lidar.floor_assign import PlaneSet, select_floor
 from accelcal_ros.lidar.plane_fit import find_floor, find_planes, FloorSearch
 from accelcal_ros.lidar.wahba import (check_constrained, holdout, observability_warnings,
-                                      pair_errors_deg, rotation_angle_deg, rotation_covariance,
+                                      pair_errors_deg, rotation_covariance,
                                       rpy_std_deg, solve_wahba)
 from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
@@ -238,59 +239,3 @@ def _too_few(kept, dropped):
     reasons = '; '.join(f'{k}: {v}' for k, v in dropped.items()) or 'none given'
     return (f'only {len(kept)} usable position(s), need at least 2 (3 or more with '
             f'different tilts to constrain all angles); dropped: {reasons}')
-
-
-def load_boresight(path: PathLike) -> np.ndarray:
-    """
-    Return the 3x3 rotation (LiDAR -> IMU) from a boresight YAML (``R`` and/or ``rpy_deg``).
-
-    Every field used is checked here, once, naming file and field: ``R`` 9 finite numbers
-    forming a rotation (1e-4 tolerance), ``rpy_deg`` 3 finite numbers with roll and yaw in
-    [-180, 180] and pitch in [-90, 90] deg; when both are present they must agree within
-    0.01 deg (an edited ``rpy_deg`` beside a stale ``R`` is refused, not silently ignored).
-    """
-    from accelcal_ros.errors import FileFormatError
-    from accelcal_ros.fileio import load_yaml_mapping
-    from accelcal_ros.frames import rotation_from_rpy_radians
-
-    data = load_yaml_mapping(path, 'boresight file')
-    if 'R' not in data and 'rpy_deg' not in data:
-        raise FileFormatError(path, 'boresight file has neither R (9 values) nor rpy_deg (3)')
-    from_r = from_rpy = None
-    if 'R' in data:
-        try:
-            from_r = rotation_matrix_from_list(_numbers(data['R'], 9, 'R'), 'R', tolerance=1e-4)
-        except InputError as exc:
-            raise FileFormatError(path, f'field {exc}') from None
-    if 'rpy_deg' in data:
-        try:
-            rpy = _numbers(data['rpy_deg'], 3, 'rpy_deg')
-        except InputError as exc:
-            raise FileFormatError(path, f'field {exc}') from None
-        limits = (180.0, 90.0, 180.0)
-        for name, value, limit in zip(('roll', 'pitch', 'yaw'), rpy, limits):
-            if abs(value) > limit:
-                raise FileFormatError(path, f'field rpy_deg: {name} {value:g} deg is outside '
-                                            f'[-{limit:g}, {limit:g}]')
-        from_rpy = rotation_from_rpy_radians(*np.radians(rpy))
-    if from_r is not None and from_rpy is not None:
-        gap = rotation_angle_deg(from_r, from_rpy)
-        if gap > 0.01:
-            raise FileFormatError(path, f'fields R and rpy_deg disagree by {gap:.3f} deg: fix '
-                                        'or delete one of them')
-    result = from_r if from_r is not None else from_rpy
-    assert result is not None   # one of the two fields is present (checked above)
-    return result
-
-
-def _numbers(values: Any, count: int, name: str) -> np.ndarray:
-    """Return ``count`` finite floats from a YAML list, else InputError naming ``name``."""
-    try:
-        arr = np.asarray(values, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f'{name}: expected {count} numbers, got {values!r:.80}') from None
-    if arr.size != count:
-        raise InputError(f'{name}: expected {count} numbers, got {arr.size}')
-    if not np.all(np.isfinite(arr)):
-        raise InputError(f'{name}: contains NaN or infinity ({arr.tolist()})')
-    return arr

@@ -14,7 +14,9 @@ time the rig rests (:mod:`accelcal_ros.lidar.capture`), or on
 (YAML: ``R`` row-major LiDAR -> IMU, ``rpy_deg``, ``per_position_error_deg``,
 ``holdout_error_deg``, ...); ``lidar_calibration/cancel`` drops the session. Publishes
 ``lidar_calibration/status`` (diagnostic_msgs/DiagnosticStatus, transient local) and
-``/diagnostics``. The stillness settings take effect at the next start.
+``/diagnostics``. The stillness settings take effect at the next start. After finish,
+``imu_frame`` -> ``lidar_frame`` (the boresight and ``lever_arm_m``) is published on
+``/tf_static`` as ``calibration_frames`` does.
 """
 import os
 import threading
@@ -28,6 +30,7 @@ from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from accelcal_ros.session_interface import OK, SessionProgress, WARN
+from accelcal_ros.rosutil.static_tf import StaticBroadcaster
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -70,6 +73,7 @@ class LidarCalibrationNode(Node):
                                f'{self.params["min_positions"]} or more tilts (auto capture '
                                f'{"on" if self.params["auto_capture"] else "off"}), then call '
                                'lidar_calibration/finish')
+        self._tf = StaticBroadcaster(self)
 
     def _apply_settings(self, values=None):
         p = dict(self.params.values)
@@ -176,6 +180,7 @@ class LidarCalibrationNode(Node):
 
     def solve(self):
         """Solve the boresight from the session's positions and write output_file."""
+        from accelcal_ros.frame_tree import lidar_transform, names_from_values
         from accelcal_ros.frames import rotation_from_rpy_radians
         from accelcal_ros.lidar.boresight import calibrate_boresight
         from accelcal_ros.lidar.calibrate_dir import report_lines, write_result
@@ -195,6 +200,8 @@ class LidarCalibrationNode(Node):
         path = self.output_file()
         result = calibrate_boresight(positions, prior, search, p['weighting'])
         write_result(path, result)
+        self._tf.send([lidar_transform(names_from_values(p), result.rotation,
+                                       p['lever_arm_m'])])
         for line in report_lines(result):
             self.get_logger().info(line)
         with self._lock:

@@ -7,6 +7,7 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 """
 from typing import Any, Dict, Optional
 
+from accelcal_ros.frame_tree import frame_name_params
 from accelcal_ros.lidar.capture import CaptureSettings
 from accelcal_ros.outputs import default_output, output_validator
 from accelcal_ros.paramspec import output_file_check, ParamSpec
@@ -66,6 +67,9 @@ LIDAR_CALIBRATION_PARAMS = (
     ParamSpec('weighting', 'equal', 'pair weights: equal (paper) or from the noise of each pair',
               choices=('noise', 'equal')),
     status_period_spec('lidar_calibration'),
+    ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame (published with '
+              'the boresight on /tf_static at finish)', lengths=(3,), unit='m'),
+    *frame_name_params('imu_frame', 'lidar_frame'),
 )
 """Every parameter of the ``lidar_calibration`` node (see config/lidar_calibration.yaml)."""
 

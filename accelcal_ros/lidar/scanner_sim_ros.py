@@ -33,7 +33,7 @@ def imu_msg(t, accel, gyro, frame_id='imu_link'):
     return msg
 
 
-def cloud_msg(cloud, stamp_s, frame_id='velodyne'):
+def cloud_msg(cloud, stamp_s, frame_id='lidar_link'):
     """Return a PointCloud2 of a structured cloud stamped ``stamp_s``."""
     header = Header(frame_id=frame_id, stamp=seconds_to_stamp(stamp_s, Time))
     return array_to_pointcloud2(cloud, PointCloud2, PointField, header)

@@ -60,6 +60,6 @@ def write_protocol_bag(path: Path, fmt: str, protocol: Sequence[Any],
                         None if pos.imu.gyro is None else pos.imu.gyro[k], topic=imu_topic))
                 else:
                     writer.write(points_topic, ns, writer.pointcloud2_message(
-                        ns, pos.cloud, 'velodyne', topic=points_topic))
+                        ns, pos.cloud, 'lidar_link', topic=points_topic))
             offset = t[-1] + 1.0 / 200.0
     return path

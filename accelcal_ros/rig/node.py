@@ -15,6 +15,9 @@ stitcher's rig file with ``imu_to_camera``), its report and plot;
 how many views and how much of the image they cover (``<camera>.views``,
 ``<camera>.coverage_percent``), per pair how many shared views
 (``shared_views.<a>-<b>``), and what to do next (``hint``).
+After finish, ``imu_frame`` -> the reference camera's optical frame -> every other
+camera's is published on ``/tf_static`` (from the rig file written, as
+``calibration_frames`` reads it).
 """
 import os
 import threading
@@ -29,6 +32,7 @@ from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from accelcal_ros.session_interface import OK, SessionProgress, WARN
+from accelcal_ros.rosutil.static_tf import StaticBroadcaster
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -74,6 +78,7 @@ class RigCalibrationNode(Node):
                                f'{p["board"]}; call rig_calibration/start, rest the rig with '
                                'the board in view in a dozen poses, then call '
                                'rig_calibration/finish')
+        self._tf = StaticBroadcaster(self)
 
     def _on_change(self, name, value):
         if name == 'reference':
@@ -164,12 +169,15 @@ class RigCalibrationNode(Node):
 
     def solve(self):
         """Calibrate the session's poses, write the rig file, report and plot."""
+        from accelcal_ros.camera.rig import load_rig
+        from accelcal_ros.frame_tree import camera_transforms, names_from_values
         from accelcal_ros.rig.report import report_lines, write_outputs
 
         p = dict(self.params.values)
         with self._lock:
             result = self._capture.finish(p['reference'] or None, self._model)
         paths = write_outputs(self.output_file(), result)
+        self._tf.send(camera_transforms(names_from_values(p), load_rig(paths[0])))
         for line in report_lines(result):
             self.get_logger().info(line)
         with self._lock:

@@ -1,6 +1,7 @@
 """Parameters of the ``rig_calibration`` node (pure specifications)."""
 from typing import List, Optional
 
+from accelcal_ros.frame_tree import frame_name_params
 from accelcal_ros.outputs import default_output, output_validator
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.rig.board import parse_board_size
@@ -46,6 +47,7 @@ RIG_CALIBRATION_PARAMS = (
     ParamSpec('min_still_s', 1.0, 'stillness needed before a capture', minimum=0.2,
               maximum=30.0, unit='s'),
     status_period_spec('rig_calibration'),
+    *frame_name_params('imu_frame', 'camera_frame_suffix'),
 )
 
 

@@ -9,10 +9,12 @@ from accelcal_ros.lidar.scanner_sim_ros import (drive_moving_platform, drive_sta
                                                 finish_calibration, PACKETS_PER_REVOLUTION)
 from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
+from accelcal_ros.rosutil.static_tf import msg_to_transform, STATIC_TF_QOS
 import numpy as np
 import pytest
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
+from tf2_msgs.msg import TFMessage
 
 
 @pytest.mark.graph
@@ -24,7 +26,7 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
     proc = graph.start('lidar_calibration', params={
         'output_file': str(out), 'prior_rpy_deg': [0.0, 45.0, 0.0], 'min_static_s': 0.5,
         'min_positions': 3, 'points_reliable': True,
-        'clouds_per_capture': PACKETS_PER_REVOLUTION})
+        'clouds_per_capture': PACKETS_PER_REVOLUTION, 'lever_arm_m': [0.3, -0.1, 0.25]})
     early = graph.call(Trigger, 'lidar_calibration/finish', timeout=20.0)
     assert not early.success and 'lidar_calibration/start' in early.message
     assert graph.call(Trigger, 'lidar_calibration/start').success
@@ -43,6 +45,16 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
     assert graph.call(Trigger, 'lidar_calibration/start').success
     not_still = graph.call(Trigger, 'lidar_calibration/capture', timeout=10.0)
     assert not not_still.success and 'still' in not_still.message
+    # the result on /tf_static, to a late joiner: the file's R and the lever arm
+    tf_static = graph.collect(TFMessage, '/tf_static', qos=STATIC_TF_QOS)
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and not tf_static.snapshot()[0]:
+        time.sleep(0.05)
+    (msg,) = tf_static.snapshot()[0]
+    (tf,) = [msg_to_transform(m) for m in msg.transforms]
+    assert (tf.parent, tf.child) == ('imu_link', 'lidar_link')
+    assert np.abs(tf.rotation - load_boresight(out)).max() < 1e-9
+    assert np.allclose(tf.translation, [0.3, -0.1, 0.25], atol=1e-12)
 
 
 @pytest.mark.graph
