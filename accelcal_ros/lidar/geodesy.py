@@ -193,8 +193,9 @@ class MapProjection:
         out = np.empty_like(pts)
         for a in range(0, len(pts), chunk):
             b = min(a + chunk, len(pts))
-            x, y, z = self._from_ecef.transform(pts[a:b, 0], pts[a:b, 1], pts[a:b, 2])
-            out[a:b, 0], out[a:b, 1], out[a:b, 2] = x, y, z
+            part = pts[a:b] if b - a > 1 else np.repeat(pts[a:b], 2, axis=0)
+            x, y, z = self._from_ecef.transform(part[:, 0], part[:, 1], part[:, 2])
+            out[a:b, 0], out[a:b, 1], out[a:b, 2] = x[:b - a], y[:b - a], z[:b - a]
         if not np.all(np.isfinite(out)):
             raise InputError(f'some points lie outside the domain of {self.name}: give a '
                              'CRS that covers the survey (--crs)')
@@ -203,10 +204,14 @@ class MapProjection:
     def from_geodetic(self, lat_deg: ArrayLike, lon_deg: ArrayLike, h_m: ArrayLike
                       ) -> np.ndarray:
         """Return map coordinates ``(N, 3)`` of geodetic points (deg, deg, m)."""
-        x, y, z = self._from_geodetic.transform(np.asarray(lon_deg, float).reshape(-1),
-                                                np.asarray(lat_deg, float).reshape(-1),
-                                                np.asarray(h_m, float).reshape(-1))
-        return np.stack([x, y, z], axis=1)
+        lon = np.asarray(lon_deg, float).reshape(-1)
+        lat = np.asarray(lat_deg, float).reshape(-1)
+        h = np.asarray(h_m, float).reshape(-1)
+        n = len(lon)
+        if n == 1:  # pyproj takes a 1-element array for a scalar point (numpy warns)
+            lon, lat, h = np.repeat(lon, 2), np.repeat(lat, 2), np.repeat(h, 2)
+        x, y, z = self._from_geodetic.transform(lon, lat, h)
+        return np.stack([x, y, z], axis=1)[:n]
 
     def factors(self, lat_deg: float, lon_deg: float) -> ProjectionFactors:
         """Return the projection's convergence and scale factor at a point (PROJ)."""
