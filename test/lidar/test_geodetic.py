@@ -26,7 +26,7 @@ TOL_M = 0.01
 
 @pytest.fixture(scope='module')
 def drive():
-    """Simulate the drive (30 s at 12 m/s, 400 targets 5..100 m away)."""
+    """Simulate 30 s of driving at 12 m/s with 400 targets 5..100 m away."""
     return simulate_drive()
 
 

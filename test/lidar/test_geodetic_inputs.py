@@ -23,7 +23,7 @@ HEADER = 't,lat,lon,h,roll,pitch,yaw'
 
 @pytest.fixture(scope='module')
 def drive():
-    """Simulate a short drive (10 s, 150 targets)."""
+    """Simulate 10 s of driving with 150 targets."""
     return simulate_drive(duration_s=10.0, targets=150, seed=7)
 
 
