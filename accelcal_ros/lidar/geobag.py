@@ -108,16 +108,34 @@ def read_geodetic_trajectory(bag: BagReader, navsat_topic: Optional[str],
 
 def stream_scans(bag: BagReader, points_topic: Optional[str], geo: MapGeoreferencer,
                  sink: Callable[[np.ndarray, np.ndarray, np.ndarray], None],
-                 time_field: Optional[str] = None) -> Tuple[Dict[str, int], List[str]]:
+                 time_field: Optional[str] = None, batch_points: int = 1 << 18
+                 ) -> Tuple[Dict[str, int], List[str]]:
     """
-    Georeference every scan and call ``sink(map_xyz, times, kept_records)`` per scan.
+    Georeference every scan and call ``sink(map_xyz, times, kept_records)`` per batch.
 
-    Returns ``(totals, warnings)``; ``totals`` sums the per-scan counts.
+    Scans are gathered into batches of about ``batch_points`` (same fields), so the work
+    spreads over the cores; memory stays bounded by a batch. Returns ``(totals,
+    warnings)``; ``totals`` sums the counts.
     """
     name = bag.select_topic(points_topic, (convert.POINTCLOUD2,), '--points')
     totals = {'total': 0, 'kept': 0, 'before_span': 0, 'after_span': 0, 'in_gap': 0,
               'non_finite': 0}
     log = StampLog()
+    clouds: List[np.ndarray] = []
+    stamps: List[np.ndarray] = []
+
+    def flush() -> None:
+        cloud = np.concatenate(clouds) if len(clouds) > 1 else clouds[0]
+        times = np.concatenate(stamps) if len(stamps) > 1 else stamps[0]
+        clouds.clear()
+        stamps.clear()
+        out, keep, stats = geo.georeference(xyz(cloud), times)
+        for key in totals:
+            totals[key] += getattr(stats, key)
+        if stats.kept:
+            sink(out, times[keep], cloud[keep])
+
+    pending = 0
     for message in bag.messages([name], f'georeferencing {name}'):
         log.add(message)
         cloud = convert.cloud_array(message.msg)
@@ -127,9 +145,15 @@ def stream_scans(bag: BagReader, points_topic: Optional[str], geo: MapGeoreferen
             times = point_times(cloud, message_time_s(message, bag.stamp), time_field)
         except InputError as exc:
             raise InputError(f'{name}: {exc}') from None
-        out, keep, stats = geo.georeference(xyz(cloud), times)
-        for key in totals:
-            totals[key] += getattr(stats, key)
-        if stats.kept:
-            sink(out, times[keep], cloud[keep])
+        if clouds and cloud.dtype != clouds[0].dtype:
+            flush()
+            pending = 0
+        clouds.append(cloud)
+        stamps.append(times)
+        pending += len(cloud)
+        if pending >= batch_points:
+            flush()
+            pending = 0
+    if clouds:
+        flush()
     return totals, log.warnings(name, bag.stamp)

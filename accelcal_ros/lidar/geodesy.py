@@ -187,15 +187,33 @@ class MapProjection:
         """Return the horizontal CRS as OGC WKT 1 (what LAS 1.4 readers parse)."""
         return str(self.crs.to_wkt('WKT1_GDAL'))
 
-    def from_ecef(self, xyz: ArrayLike, chunk: int = 1 << 20) -> np.ndarray:
-        """Return map coordinates ``(N, 3)`` (easting, northing, ellipsoidal height, m)."""
+    def from_ecef(self, xyz: ArrayLike, threads: Optional[int] = None) -> np.ndarray:
+        """
+        Return map coordinates ``(N, 3)`` (easting, northing, ellipsoidal height, m).
+
+        Large arrays are split over ``threads`` (default: the CPU count, at most 4): PROJ
+        runs without the GIL and pyproj's transformers are thread-safe.
+        """
+        import os
+        from concurrent.futures import ThreadPoolExecutor
+
         pts = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
         out = np.empty_like(pts)
-        for a in range(0, len(pts), chunk):
-            b = min(a + chunk, len(pts))
+        threads = threads or min(4, os.cpu_count() or 1)
+        parts = threads if len(pts) >= 65536 * threads else 1
+        bounds = np.linspace(0, len(pts), parts + 1).astype(int)
+
+        def work(k: int) -> None:
+            a, b = int(bounds[k]), int(bounds[k + 1])
             part = pts[a:b] if b - a > 1 else np.repeat(pts[a:b], 2, axis=0)
             x, y, z = self._from_ecef.transform(part[:, 0], part[:, 1], part[:, 2])
             out[a:b, 0], out[a:b, 1], out[a:b, 2] = x[:b - a], y[:b - a], z[:b - a]
+
+        if parts == 1:
+            work(0)
+        else:
+            with ThreadPoolExecutor(max_workers=parts) as pool:
+                list(pool.map(work, range(parts)))
         if not np.all(np.isfinite(out)):
             raise InputError(f'some points lie outside the domain of {self.name}: give a '
                              'CRS that covers the survey (--crs)')

@@ -170,6 +170,11 @@ class MapGeoreferencer:
     def georeference(self, points: ArrayLike, times: ArrayLike
                      ) -> Tuple[np.ndarray, np.ndarray, GeorefStats]:
         """Return ``(map points (M, 3) E N h, kept mask (N,), stats)``."""
+        import os
+
+        threads = min(4, os.cpu_count() or 1)
+        chunk = max(65536, len(np.asarray(times).reshape(-1)) // threads + 1)
         ecef, keep, stats = georeference(points, times, self.interp, self.boresight,
-                                         self.lever_arm_m, max_gap_s=self.max_gap_s)
-        return self.projection.from_ecef(ecef), keep, stats
+                                         self.lever_arm_m, threads=threads, chunk=chunk,
+                                         max_gap_s=self.max_gap_s)
+        return self.projection.from_ecef(ecef, threads), keep, stats

@@ -3,7 +3,7 @@ LAS 1.4 / LAZ output of georeferenced clouds (laspy, LAZ through lazrs), streame
 
 What is written (ASPRS LAS 1.4 R15):
 
-- point data record format 6: x y z as int32 with scale 0.001 m (1 mm) and offsets at
+- point data record format 6 (records filled as raw arrays): x y z as int32 with scale 0.001 m (1 mm) and offsets at
   the survey (the first map point rounded to 1 km), so UTM magnitudes (6e6 m) keep 1 mm;
   ``gps_time``; ``intensity`` (the scan's value, rounded and clipped to 0..65535);
   ``return_number``/``number_of_returns`` (from a ``return`` field, else 1 of 1); the
@@ -22,10 +22,11 @@ when complete (:func:`accelcal_ros.fileio.atomic_output_path`): memory is bounde
 chunk, and a failed or interrupted run leaves no partial output.
 """
 import calendar
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack
 import os
 from types import TracebackType
-from typing import Any, Optional, Type
+from typing import Any, List, Optional, Type
 
 from accelcal_ros.errors import InputError
 import numpy as np
@@ -77,12 +78,14 @@ class LasCloudWriter:
 
     ``wkt`` is the horizontal CRS; ``origin_m`` a map point near the survey (offsets);
     ``unix_clock``: the point times are Unix seconds (converted to Adjusted Standard GPS
-    Time) or another clock (written as is). ``ring``/``returns``: whether the records
-    carry those dimensions.
+    Time) or another clock (written as is). ``ring``: whether the records carry it.
+    Records are buffered up to ``flush_points`` and compressed by a writer thread while
+    the caller prepares the next batch (lazrs compresses in parallel, without the GIL):
+    memory holds at most two batches.
     """
 
     def __init__(self, path: Any, wkt: str, origin_m: ArrayLike, unix_clock: bool,
-                 ring: bool = False, crs_name: str = '') -> None:
+                 ring: bool = False, crs_name: str = '', flush_points: int = 1 << 20) -> None:
         self.path = os.fspath(path)
         self.wkt = wkt
         self.offset = np.round(np.asarray(origin_m, dtype=float).reshape(3) / 1000.0) * 1000.0
@@ -90,9 +93,14 @@ class LasCloudWriter:
         self.ring = ring
         self.crs_name = crs_name
         self.count = 0
+        self.flush_points = flush_points
         self._stack: Optional[ExitStack] = None
         self._writer: Any = None
         self._header: Any = None
+        self._buffer: List[np.ndarray] = []
+        self._buffered = 0
+        self._pending: Optional['Future[None]'] = None
+        self._pool = ThreadPoolExecutor(max_workers=1)
 
     def _make_header(self) -> Any:
         import laspy
@@ -143,8 +151,6 @@ class LasCloudWriter:
     def write(self, xyz_m: ArrayLike, times_s: ArrayLike, intensity: Optional[ArrayLike] = None,
               ring: Optional[ArrayLike] = None, returns: Optional[ArrayLike] = None) -> None:
         """Append points: map ``(N, 3)`` m, times (s, the clock given), optional fields."""
-        import laspy
-
         pts = np.asarray(xyz_m, dtype=np.float64).reshape(-1, 3)
         n = len(pts)
         if not n:
@@ -153,30 +159,57 @@ class LasCloudWriter:
         if np.any(np.abs(ints) > 2**31 - 1):
             raise InputError(f'{self.path}: points lie more than 2147 km from the '
                              f'offset {self.offset.tolist()} m: wrong CRS or trajectory?')
-        rec = laspy.ScaleAwarePointRecord.zeros(n, header=self._header)
-        rec.X, rec.Y, rec.Z = ints[:, 0].astype(np.int32), ints[:, 1].astype(np.int32), \
-            ints[:, 2].astype(np.int32)
+        rec = np.zeros(n, dtype=self._header.point_format.dtype())
+        rec['X'], rec['Y'], rec['Z'] = ints[:, 0], ints[:, 1], ints[:, 2]
         t = np.asarray(times_s, dtype=float).reshape(-1)
-        rec.gps_time = unix_to_adjusted_gps(t) if self.unix_clock else t
+        rec['gps_time'] = unix_to_adjusted_gps(t) if self.unix_clock else t
         if intensity is not None:
-            rec.intensity = np.clip(np.round(np.asarray(intensity, float)), 0, 65535
-                                    ).astype(np.uint16)
-        if returns is not None:
-            r = np.clip(np.asarray(returns), 1, 15).astype(np.uint8)
-            rec.return_number = r
-            rec.number_of_returns = r
-        else:
-            rec.return_number = np.ones(n, np.uint8)
-            rec.number_of_returns = np.ones(n, np.uint8)
-        if self.ring:
-            rec.ring = (np.zeros(n, np.uint16) if ring is None
-                        else np.asarray(ring).astype(np.uint16))
-        self._writer.write_points(rec)
+            rec['intensity'] = np.clip(np.round(np.asarray(intensity, float)), 0, 65535)
+        # format 6 bit field: return number (bits 0-3), number of returns (bits 4-7)
+        r = (np.ones(n, np.uint8) if returns is None
+             else np.clip(np.asarray(returns), 1, 15).astype(np.uint8))
+        rec['bit_fields'] = r | (r << 4)
+        if self.ring and ring is not None:
+            rec['ring'] = np.asarray(ring).astype(np.uint16)
+        self._buffer.append(rec)
+        self._buffered += n
         self.count += n
+        if self._buffered >= self.flush_points:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Hand the buffered records to the compressing thread (one batch in flight)."""
+        import laspy
+
+        if not self._buffer:
+            return
+        data = np.concatenate(self._buffer) if len(self._buffer) > 1 else self._buffer[0]
+        self._buffer, self._buffered = [], 0
+        self._wait()
+        record = laspy.PackedPointRecord(data, self._header.point_format)
+        self._pending = self._pool.submit(self._writer.write_points, record)
+
+    def _wait(self) -> None:
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
 
     def __exit__(self, exc_type: Optional[Type[BaseException]],
                  exc: Optional[BaseException], tb: Optional[TracebackType]) -> None:
         """Finish the file (header counts and bounds) and put it in place, or discard it."""
         stack, self._stack = self._stack, None
-        if stack is not None:
+        if stack is None:
+            return
+        try:
+            if exc_type is None:
+                self._flush()
+                self._wait()
+        except BaseException as error:
+            exc_type, exc, tb = type(error), error, error.__traceback__
+            raise
+        finally:
+            if exc_type is not None and self._pending is not None:
+                self._pending.exception()       # let the thread finish; its error is moot
+                self._pending = None
+            self._pool.shutdown(wait=True)
             stack.__exit__(exc_type, exc, tb)
