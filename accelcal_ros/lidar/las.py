@@ -3,7 +3,7 @@ LAS 1.4 / LAZ output of georeferenced clouds (laspy, LAZ through lazrs), streame
 
 What is written (ASPRS LAS 1.4 R15):
 
-- point data record format 6 (records filled as raw arrays): x y z as int32 with scale 0.001 m (1 mm) and offsets at
+- point data record format 6: x y z as int32 with scale 0.001 m (1 mm) and offsets at
   the survey (the first map point rounded to 1 km), so UTM magnitudes (6e6 m) keep 1 mm;
   ``gps_time``; ``intensity`` (the scan's value, rounded and clipped to 0..65535);
   ``return_number``/``number_of_returns`` (from a ``return`` field, else 1 of 1); the
@@ -17,9 +17,10 @@ What is written (ASPRS LAS 1.4 R15):
   before the GPS epoch (a simulation or a relative clock) is written as it is, bit 0
   clear, and the VLR says "recording clock".
 
-The file is written chunk by chunk into a temporary file that replaces the target only
+The file is written batch by batch into a temporary file that replaces the target only
 when complete (:func:`accelcal_ros.fileio.atomic_output_path`): memory is bounded by one
-chunk, and a failed or interrupted run leaves no partial output.
+batch (two while one is compressed), and a failed or interrupted run leaves no partial
+output.
 """
 import calendar
 from concurrent.futures import Future, ThreadPoolExecutor
