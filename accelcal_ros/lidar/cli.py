@@ -103,6 +103,9 @@ def register(subparsers: argparse._SubParsersAction,
     s.add_argument('--no-prior', action='store_true', help='search the floor without prior')
     s.add_argument('--weighting', choices=('noise', 'equal'), default='equal')
     s.set_defaults(handler=_study)
+    from accelcal_ros.lidar.geo_cli import add_study
+
+    add_study(study_subparsers)
 
 
 def _add_boresight_bag_arguments(p: argparse.ArgumentParser) -> None:

@@ -3,8 +3,8 @@ Simulated GNSS/INS drive with surveyed targets: the ground truth of geodetic geo
 
 The platform drives a smooth curve (about ``speed_m_s``, turning, with roll/pitch
 wobble and a heading that follows the path) around a place given in WGS84 (default
-55.75 N, 37.6 E: UTM 37N, 1.4 deg west of the central meridian, convergence about
--1.2 deg, scale factor 0.99963). The body pose is exact at every instant: position in
+55.75 N, 37.6 E: UTM 37N, 1.4 deg west of the central meridian, convergence
+-1.16 deg, scale factor 0.99970). The body pose is exact at every instant: position in
 the ENU frame of the start point, carried to ECEF and geodetic; attitude REP-103 body in
 the ENU frame of the *current* position. Targets are placed at known geodetic
 coordinates (5..``max_range_m`` m from the scanner when it sees them, -2..+8 m height)
@@ -13,7 +13,7 @@ and each is observed once by the scanner at a random time: its LiDAR-frame point
 come with it. Times are Unix seconds (``t0_unix_s``), the ROS clock of a recording.
 """
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 from accelcal_ros.frames import rotation_from_rpy_radians
 from accelcal_ros.lidar.cloud import make_cloud
@@ -33,6 +33,7 @@ class GeoDrive:
     target_h_m: np.ndarray
     boresight: np.ndarray
     lever_arm_m: np.ndarray
+    speed_m_s: float = 12.0
 
 
 def _ecef_to_geodetic(xyz: np.ndarray) -> np.ndarray:
@@ -111,7 +112,7 @@ def simulate_drive(lat0_deg: float = 55.75, lon0_deg: float = 37.6, h0_m: float 
     p_lidar = (body - lever) @ boresight
     cloud = make_cloud(p_lidar, rng.uniform(1, 255, targets), rng.integers(0, 16, targets),
                        t0_unix_s + t_obs, 'timestamp')
-    return GeoDrive(traj, cloud, geo[:, 0], geo[:, 1], geo[:, 2], boresight, lever)
+    return GeoDrive(traj, cloud, geo[:, 0], geo[:, 1], geo[:, 2], boresight, lever, speed_m_s)
 
 
 def vlp16_scans(drive: GeoDrive, revolutions: int, range_m: float = 20.0,
@@ -143,7 +144,7 @@ def write_drive_bag(path: Any, fmt: str, drive: GeoDrive, cloud: Optional[np.nda
     cloud = drive.cloud if cloud is None else cloud
     traj = drive.trajectory
     quats = Rotation.from_matrix(traj.enu_from_body).as_quat()
-    bad = set(int(k) for k in no_fix)
+    bad = {int(k) for k in no_fix}
     with BagWriter(path, fmt) as writer:
         types = writer.typestore.types
         writer.add_topic('/gnss/fix', 'sensor_msgs/NavSatFix')
@@ -191,3 +192,65 @@ def write_drive_bag(path: Any, fmt: str, drive: GeoDrive, cloud: Optional[np.nda
         for ns, topic, msg in sorted(events, key=lambda e: e[0]):
             writer.write(topic, ns, msg)
     return path
+
+
+def flat_shortcut(drive: GeoDrive, with_convergence: bool, with_scale: bool) -> np.ndarray:
+    """
+    Return the targets placed by the flat shortcut: UTM of the pose + the ENU offset.
+
+    The offset is rotated by the meridian convergence and scaled by the point scale factor
+    at the pose only when asked (both from PROJ): what georeferencing without an exact
+    projection would give. Exact poses, so only the projection shortcut differs.
+    """
+    from accelcal_ros.lidar.cloud import xyz
+
+    traj = drive.trajectory
+    truth = DriveTruth(float(traj.lat_deg[0]), float(traj.lon_deg[0]), float(traj.h_m[0]),
+                       drive.speed_m_s)
+    lat, lon, h, c_enu, _, _ = truth.pose(drive.cloud['timestamp'] - traj.t[0])
+    proj = traj.projection()
+    origin = proj.from_geodetic(lat, lon, h)
+    offset = np.einsum('nij,nj->ni', c_enu, xyz(drive.cloud) @ drive.boresight.T
+                       + drive.lever_arm_m)
+    factors = [proj.factors(float(a), float(b)) for a, b in zip(lat, lon)]
+    gamma = np.radians([f.convergence_deg for f in factors]) if with_convergence \
+        else np.zeros(len(lat))
+    k = np.array([f.scale for f in factors]) if with_scale else np.ones(len(lat))
+    east = k * (np.cos(gamma) * offset[:, 0] - np.sin(gamma) * offset[:, 1])
+    north = k * (np.sin(gamma) * offset[:, 0] + np.cos(gamma) * offset[:, 1])
+    return origin + np.stack([east, north, offset[:, 2]], axis=1)
+
+
+def target_truth(drive: GeoDrive) -> np.ndarray:
+    """Return the targets' true map coordinates (PROJ straight from their geodetic truth)."""
+    return drive.trajectory.projection().from_geodetic(drive.target_lat_deg,
+                                                       drive.target_lon_deg, drive.target_h_m)
+
+
+def write_sample(directory: Any, seconds: float = 10.0) -> List[str]:
+    """
+    Write the README's georeferencing inputs into ``directory``; return the names.
+
+    ``drive_trajectory.csv`` (t,lat,lon,h,roll,pitch,yaw, ENU form), ``drive_scan.pcd``
+    (the targets plus two VLP-16 revolutions, absolute ``timestamp``),
+    ``drive_boresight.yaml`` and ``rosbag2_ins`` (mcap: /gnss/fix NavSatFix, /ins/odom
+    Odometry orientation, /velodyne_points). Lever arm 0.4 -0.1 0.3 m.
+    """
+    import os
+
+    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.lidar.geotraj import write_trajectory_csv
+    from accelcal_ros.lidar.pcd import write_pcd
+
+    drive = simulate_drive(duration_s=seconds, targets=200, seed=1)
+    os.makedirs(directory, exist_ok=True)
+    write_trajectory_csv(os.path.join(directory, 'drive_trajectory.csv'), drive.trajectory)
+    scans = vlp16_scans(drive, 2)
+    merged = np.concatenate([drive.cloud, scans])
+    merged = merged[np.argsort(merged['timestamp'], kind='stable')]
+    write_pcd(os.path.join(directory, 'drive_scan.pcd'), merged)
+    write_text_atomic(os.path.join(directory, 'drive_boresight.yaml'),
+                      dump_yaml({'R': drive.boresight.reshape(-1).tolist()}))
+    write_drive_bag(os.path.join(directory, 'rosbag2_ins'), 'mcap', drive, cloud=merged,
+                    no_fix=range(200, 210))
+    return ['drive_trajectory.csv', 'drive_scan.pcd', 'drive_boresight.yaml', 'rosbag2_ins']

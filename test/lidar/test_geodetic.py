@@ -10,7 +10,7 @@ or the scale factor (0.99970) must fail the same 1 cm test.
 from accelcal_ros.cli import main
 from accelcal_ros.fileio import dump_yaml, write_text_atomic
 from accelcal_ros.lidar.cloud import xyz
-from accelcal_ros.lidar.geo_sim import DriveTruth, simulate_drive
+from accelcal_ros.lidar.geo_sim import flat_shortcut, simulate_drive, target_truth
 from accelcal_ros.lidar.geodesy import enu_from_body_rpy, MapProjection, utm_epsg
 from accelcal_ros.lidar.geotraj import (GeodeticTrajectory, MapGeoreferencer,
                                         write_trajectory_csv)
@@ -69,31 +69,23 @@ def test_targets_land_within_1cm_of_their_true_utm(drive):
 
 def test_dropping_convergence_or_scale_would_fail(drive):
     """The targets placed with a flat ENU -> UTM shortcut miss by more than 1 cm."""
-    truth = DriveTruth(55.75, 37.6, 150.0, 12.0)
-    t = drive.cloud['timestamp'] - drive.trajectory.t[0]
-    lat, lon, h, c_enu, _, _ = truth.pose(t)
-    proj = MapProjection('EPSG:32637')
-    origin = proj.from_geodetic(lat, lon, h)
-    offset = np.einsum('nij,nj->ni', c_enu, xyz(drive.cloud) @ drive.boresight.T
-                       + drive.lever_arm_m)
-    f = [proj.factors(a, b) for a, b in zip(lat, lon)]
-    gamma = np.radians([x.convergence_deg for x in f])
-    k = np.array([x.scale for x in f])
-
-    def shortcut(with_convergence, with_scale):
-        g = gamma if with_convergence else 0.0 * gamma
-        s = k if with_scale else 1.0
-        e = s * (np.cos(g) * offset[:, 0] - np.sin(g) * offset[:, 1])
-        n = s * (np.sin(g) * offset[:, 0] + np.cos(g) * offset[:, 1])
-        return origin + np.stack([e, n, offset[:, 2]], axis=1)
-
     true_utm = _truth(drive)
-    errors = {case: np.linalg.norm(shortcut(*case) - true_utm, axis=1).max()
+    errors = {case: np.linalg.norm(flat_shortcut(drive, *case) - true_utm, axis=1).max()
               for case in ((False, False), (True, False), (False, True), (True, True))}
     assert errors[(False, False)] > 100 * TOL_M       # 1.16 deg at 100 m: ~2 m
     assert errors[(False, True)] > 100 * TOL_M
     assert errors[(True, False)] > 2 * TOL_M          # 3e-4 at 100 m: ~3 cm
     assert errors[(True, True)] < TOL_M               # the shortcut with both is close
+    assert np.array_equal(target_truth(drive), true_utm)
+
+
+def test_study_georeference_prints_the_table(capsys):
+    """``accelcal study georeference``: exact path sub-millimetre, shortcuts metres."""
+    assert main(['study', 'georeference']) == 0
+    text = capsys.readouterr().out
+    exact = float(text.split('exact (ENU of the pose -> ECEF -> PROJ)')[1].split()[0])
+    assert exact < 1.0
+    assert 'flat: no convergence' in text
 
 
 def test_cli_writes_laz_that_reads_back(drive, files, tmp_path, capsys):

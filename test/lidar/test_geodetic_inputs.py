@@ -180,3 +180,23 @@ def test_cloud_without_time_and_las_without_crs(tmp_path, capsys, boresight_file
                  '--boresight', str(boresight_file), '-o', str(tmp_path / 'o.las')]) == 1
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'needs a geodetic trajectory' in err
+
+
+def test_sample_files_run_the_readme_commands(tmp_path, monkeypatch, capsys):
+    """write_sample's files run the README's georeference lines as printed."""
+    from accelcal_ros.lidar.geo_sim import write_sample
+
+    names = write_sample(tmp_path, seconds=4.0)
+    assert all((tmp_path / n).exists() for n in names)
+    monkeypatch.chdir(tmp_path)
+    lever = ['--lever-arm', '0.4', '-0.1', '0.3']
+    assert main(['georeference', '--cloud', 'drive_scan.pcd', '--trajectory',
+                 'drive_trajectory.csv', '--boresight', 'drive_boresight.yaml', *lever,
+                 '-o', 'drive_utm.laz']) == 0
+    assert main(['georeference', 'rosbag2_ins', '--points', '/velodyne_points', '--navsat',
+                 '/gnss/fix', '--odom', '/ins/odom', '--boresight', 'drive_boresight.yaml',
+                 *lever, '-o', 'ins_utm.laz']) == 0
+    first, second = laspy.read('drive_utm.laz'), laspy.read('ins_utm.laz')
+    assert first.header.parse_crs().to_epsg() == second.header.parse_crs().to_epsg() == 32637
+    assert 0 < len(second.x) <= len(first.x)
+    assert 'NO_FIX dropped' in capsys.readouterr().err
