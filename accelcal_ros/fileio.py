@@ -650,3 +650,49 @@ def write_with_atomic(path: PathLike, writer: Callable[[IO[Any]], object], backu
         writer(text)
         data = text.getvalue().encode('utf-8')
     write_bytes_atomic(path, data, backup=backup)
+
+
+@contextlib.contextmanager
+def atomic_output_path(path: PathLike) -> Iterator[str]:
+    """
+    Yield a temporary path beside ``path`` to stream a large file into; commit it on exit.
+
+    For writers that open the file themselves and write it in chunks (LAS/LAZ): memory
+    stays bounded by the writer's chunk, and the target appears only once the block ends
+    without an exception (fsync'ed, then ``os.replace``, keeping an existing file's mode).
+    Failures are :class:`FileWriteError` naming ``path``; inputs are guarded as for
+    :func:`write_bytes_atomic`.
+    """
+    path = os.fspath(path)
+    if not path:
+        raise FileWriteError('""', 'empty output path')
+    _check_guard(path)
+    if os.path.isdir(path):
+        raise FileWriteError(path, 'is a directory; give a file name')
+    shown = path
+    if os.path.islink(path):
+        path = os.path.realpath(path)
+    tmp = None
+    try:
+        directory = os.path.dirname(os.path.abspath(path))
+        os.makedirs(directory, exist_ok=True)
+        remove_stale_temp_files(path)
+        try:
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        tmp = _write_file(path, b'', mode)
+    except OSError as exc:
+        raise FileWriteError(shown, f'cannot write: {exc.strerror or exc}') from None
+    try:
+        yield tmp
+        with open(tmp, 'rb+') as handle:
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        raise FileWriteError(shown, f'cannot write: {exc.strerror or exc}') from None
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)

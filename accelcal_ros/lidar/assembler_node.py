@@ -9,7 +9,10 @@ reliable QoS depth 200). Publishes each
 georeferenced scan on ``points_georef`` (PointCloud2 in the navigation frame, fields
 x y z [intensity ring] timestamp). ``cloud_assembler/save`` (std_srvs/Trigger) writes
 the accumulated cloud to ``output_file`` (.ply or .pcd, atomic), as does shutdown.
-Frames and equation: :mod:`accelcal_ros.lidar.georef`.
+Frames and equation: :mod:`accelcal_ros.lidar.georef`. With ``map_crs`` the odometry is
+in that projected CRS (UTM): points go out in the ``map`` frame anchored at
+``map_origin`` (logged) and ``save`` writes .laz/.las with the CRS
+(:mod:`accelcal_ros.lidar.map_output`).
 """
 import threading
 import time
@@ -63,6 +66,11 @@ class CloudAssemblerNode(Node):
         self.get_logger().info('boresight rpy (deg) '
                                f'{np.round(np.degrees(_rpy(boresight)), 4).tolist()}, lever '
                                f'arm {p["lever_arm_m"]} m')
+        self._map_origin = np.array(p['map_origin'], float) if p['map_origin'] else None
+        if p['map_crs']:
+            from accelcal_ros.lidar.map_output import origin_line
+
+            self.get_logger().info(origin_line(self._map_origin, p['map_crs']))
 
     def _warn_once(self, key, text):
         if key not in self._warned:
@@ -102,26 +110,37 @@ class CloudAssemblerNode(Node):
             if stats.before_span or stats.after_span:
                 self._warn_once('span', f'{stats.summary()} (points outside the odometry '
                                         'are dropped, never extrapolated)')
+            if self.params['map_crs']:
+                nav, frame = self._to_map(nav), self.params['frame_id'] or 'map'
             header = Header()
             header.frame_id = frame
             if len(nav):
                 header.stamp = seconds_to_stamp(float(nav['timestamp'][0]), Time)
             self._pub.publish(array_to_pointcloud2(nav, PointCloud2, PointField, header))
 
+    def _to_map(self, nav):
+        from accelcal_ros.lidar.map_output import choose_origin, origin_line, shift_to_map
+
+        if self._map_origin is None:
+            self._map_origin = choose_origin([], [nav['x'][0], nav['y'][0], nav['z'][0]])
+            self.get_logger().info(origin_line(self._map_origin, self.params['map_crs']))
+        return shift_to_map(nav, self._map_origin)
+
     def _save(self):
         path = self.params['output_file']
         if not path:
             return False, 'output_file is empty: set it to a .ply or .pcd path'
-        from accelcal_ros.lidar.cloud import write_cloud
+        from accelcal_ros.lidar.map_output import write_map_cloud
 
         with self._lock:
             cloud = self._core.map_cloud()
             summary = self._core.summary()
         try:
-            write_cloud(path, cloud)
+            count = write_map_cloud(path, cloud, self.params['map_crs'],
+                                    self.params['save_voxel_m'])
         except (AccelcalError, OSError) as exc:
             return False, f'cannot write {path}: {exc}'
-        return True, f'wrote {len(cloud)} points to {path}; {summary}'
+        return True, f'wrote {count} points to {path}; {summary}'
 
     def _on_save(self, request, response):
         response.success, response.message = self._save()

@@ -55,9 +55,12 @@ def register(subparsers: argparse._SubParsersAction,
     p.set_defaults(handler=_boresight)
 
     g = subparsers.add_parser(
-        'georeference', help='place LiDAR points in the navigation frame',
+        'georeference', help='place LiDAR points in the navigation frame or a map CRS (UTM)',
         description='p_nav = C(t) (R p_lidar + lever) + r(t) with the pose interpolated to '
-                    "each point's time (linear position, slerp orientation).")
+                    "each point's time (linear position, slerp orientation). With a geodetic "
+                    'trajectory (--trajectory CSV, or --navsat + --imu/--odom in a bag) each '
+                    'point goes through the ENU frame of its pose to ECEF and the map '
+                    'projection (PROJ): UTM of the first fix or --crs; .laz/.las carry the CRS.')
     g.add_argument('--cloud', help='scan (.pcd/.ply) with per-point time (or a BAG)')
     g.add_argument('--poses', help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav; or --odom)')
     _add_georeference_bag_arguments(g)
@@ -71,7 +74,11 @@ def register(subparsers: argparse._SubParsersAction,
                                         'timestamp)')
     g.add_argument('--data', choices=('binary', 'ascii', 'binary_compressed'),
                    default='binary', help='output encoding (binary_compressed: PCD only)')
-    g.add_argument('-o', '--output', required=True, help='output cloud (.ply or .pcd)')
+    g.add_argument('-o', '--output', required=True,
+                   help='output cloud (.ply or .pcd; .laz or .las with a geodetic trajectory)')
+    from accelcal_ros.lidar.geo_cli import add_arguments as add_geodetic_arguments
+
+    add_geodetic_arguments(g)
     g.set_defaults(handler=_georeference)
 
     e = subparsers.add_parser(
@@ -96,6 +103,9 @@ def register(subparsers: argparse._SubParsersAction,
     s.add_argument('--no-prior', action='store_true', help='search the floor without prior')
     s.add_argument('--weighting', choices=('noise', 'equal'), default='equal')
     s.set_defaults(handler=_study)
+    from accelcal_ros.lidar.geo_cli import add_study
+
+    add_study(study_subparsers)
 
 
 def _add_boresight_bag_arguments(p: argparse.ArgumentParser) -> None:
@@ -223,6 +233,13 @@ def _boresight(args: argparse.Namespace) -> int:
 
 
 def _georeference(args: argparse.Namespace) -> int:
+    from accelcal_ros.lidar import geo_cli
+
+    geo_cli.check_output(args.output, geo_cli.wants_map(args))
+    if geo_cli.wants_map(args):
+        from accelcal_ros.lidar.boresight import load_boresight
+
+        return geo_cli.georeference_map(args, load_boresight(args.boresight))
     if args.bag:
         return _georeference_bag(args)
     if not args.cloud or not args.poses:
@@ -249,7 +266,8 @@ def _georeference(args: argparse.Namespace) -> int:
         times = point_times(cloud, args.time_base, args.time_field)
     except (AccelcalError, ValueError, TypeError) as exc:   # missing or non-numeric field
         raise InputError(f'{args.cloud}: {exc}') from None
-    pts, keep, stats = georeference(xyz(cloud), times, poses, boresight, args.lever_arm)
+    pts, keep, stats = georeference(xyz(cloud), times, poses, boresight, args.lever_arm,
+                                    max_gap_s=args.max_gap_s)
     if stats.kept == 0:
         from accelcal_ros.errors import InputError
 

@@ -37,12 +37,14 @@ class GeorefStats:
     before_span: int
     after_span: int
     non_finite: int
+    in_gap: int = 0
 
     def summary(self) -> str:
         """Return a one-line human-readable summary."""
         return (f'{self.kept} of {self.total} points georeferenced; dropped '
                 f'{self.before_span} before and {self.after_span} after the pose stream, '
-                f'{self.non_finite} non-finite')
+                + (f'{self.in_gap} in pose gaps, ' if self.in_gap else '')
+                + f'{self.non_finite} non-finite')
 
 
 class PoseInterpolator:
@@ -115,7 +117,8 @@ def _transform_chunk(interp, boresight, lever, points, times):
 def georeference(points: ArrayLike, times: ArrayLike,
                  poses: Union[PoseStream, 'PoseInterpolator'], boresight: ArrayLike,
                  lever_arm_m: ArrayLike = (0.0, 0.0, 0.0), threads: Optional[int] = None,
-                 chunk: int = 262144) -> Tuple[np.ndarray, np.ndarray, GeorefStats]:
+                 chunk: int = 262144, max_gap_s: Optional[float] = None
+                 ) -> Tuple[np.ndarray, np.ndarray, GeorefStats]:
     """
     Return ``(points_nav (M, 3), kept_mask (N,), GeorefStats)``.
 
@@ -123,6 +126,8 @@ def georeference(points: ArrayLike, times: ArrayLike,
     clock, ``poses`` a :class:`~accelcal_ros.lidar.poses.PoseStream` (body -> nav),
     ``boresight`` 3x3 (LiDAR -> IMU), ``lever_arm_m`` (IMU frame). Work is split in
     chunks over ``threads`` (default: the CPU count, at most 4) -- numpy releases the GIL.
+    With ``max_gap_s``, points between two poses further apart than that are dropped and
+    counted (``in_gap``), never interpolated across the gap.
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     times = np.asarray(times, dtype=np.float64).reshape(-1)
@@ -138,8 +143,13 @@ def georeference(points: ArrayLike, times: ArrayLike,
     before = finite & (times < t0)
     after = finite & (times > t1)
     keep = finite & ~before & ~after
+    gap = np.zeros(len(pts), dtype=bool)
+    if max_gap_s is not None and np.any(interp.dt > max_gap_s):
+        idx, _ = interp.segment(np.where(keep, times, t0))
+        gap = keep & (interp.dt[idx] > max_gap_s)
+        keep &= ~gap
     stats = GeorefStats(int(len(pts)), int(keep.sum()), int(before.sum()), int(after.sum()),
-                        int((~finite).sum()))
+                        int((~finite).sum()), int(gap.sum()))
     sel_pts = pts[keep] if stats.kept < len(pts) else pts
     sel_t = times[keep] if stats.kept < len(pts) else times
     n = len(sel_pts)

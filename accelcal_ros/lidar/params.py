@@ -29,6 +29,23 @@ def _rpy_ok(value):
     return None if len(value) in (0, 3) else 'give 3 angles (roll pitch yaw, deg) or none'
 
 
+def _origin_ok(value):
+    return None if len(value) in (0, 3) else 'give easting northing height (m) or none'
+
+
+def _crs_ok(value):
+    if not value:
+        return None
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.lidar.geodesy import resolve_crs
+
+    try:
+        resolve_crs(value, 0.0, 0.0)
+    except InputError as exc:
+        return str(exc)
+    return None
+
+
 LIDAR_CALIBRATION_PARAMS = (
     ParamSpec('output_file', default_output('boresight.yaml'), 'boresight YAML written by '
               'finish; ~ is expanded', validator=output_validator(('.yaml', '.yml'))),
@@ -84,8 +101,18 @@ CLOUD_ASSEMBLER_PARAMS = (
     ParamSpec('time_field', '', 'per-point time field (empty = time, t or timestamp)',
               read_only=True),
     ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
-    ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply or .pcd; '
-              'empty = none)', validator=output_file_check(allow_empty=True)),
+    ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply, .pcd; '
+              '.laz or .las with map_crs; empty = none)',
+              validator=output_file_check(allow_empty=True)),
+    ParamSpec('map_crs', '', 'projected CRS of the odometry (e.g. EPSG:32637 for UTM 37N); set: '
+              'points are published in frame map = CRS - map_origin (float32-safe) and save '
+              'writes .laz/.las with this CRS; empty = the odometry frame as it is',
+              read_only=True, validator=_crs_ok),
+    ParamSpec('map_origin', [], 'CRS coordinates (easting northing height) of the map frame '
+              'origin; empty = the first pose rounded to 1 km (logged)', kind='double_array',
+              validator=_origin_ok, read_only=True, unit='m'),
+    ParamSpec('save_voxel_m', 0.0, 'thin the saved cloud to one point per voxel of this size '
+              '(0 = every point)', minimum=0.0, maximum=100.0, unit='m'),
     ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
               minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,

@@ -13,7 +13,9 @@ classes as on rclpy's. Units stay ROS's (REP-103: m, m/s^2, rad/s, rad).
 - sensor_msgs/Image and CompressedImage: :func:`image_array` (OpenCV order, BGR);
 - geometry_msgs/Vector3Stamped from the attitude node: :func:`attitude_roll_pitch`
   (x = roll, y = pitch, rad);
-- sensor_msgs/CameraInfo: :func:`camera_info` (K, D, P, size, distortion model).
+- sensor_msgs/CameraInfo: :func:`camera_info` (K, D, P, size, distortion model);
+- sensor_msgs/NavSatFix: :func:`navsat_fix` (WGS84 lat/lon deg, altitude m, status);
+  sensor_msgs/Imu's orientation: :func:`imu_orientation`.
 """
 from typing import Any, Dict, Optional, Sequence, Tuple
 
@@ -27,6 +29,9 @@ IMAGE = 'sensor_msgs/Image'
 COMPRESSED_IMAGE = 'sensor_msgs/CompressedImage'
 VECTOR3_STAMPED = 'geometry_msgs/Vector3Stamped'
 CAMERA_INFO = 'sensor_msgs/CameraInfo'
+NAVSATFIX = 'sensor_msgs/NavSatFix'
+NAVSAT_NO_FIX = -1
+"""sensor_msgs/NavSatStatus ``STATUS_NO_FIX``."""
 
 
 def imu_values(msg: Any) -> Tuple[np.ndarray, np.ndarray, bool]:
@@ -133,3 +138,17 @@ def imu_arrays_from_raw(raws: Sequence[bytes], ros1: bool) -> Optional[dict]:
             'frame_id': frame_id, 'gyro': values[:, 13:16].astype(float),
             'gyro_provided': bool(np.any(values[:, 16] != -1.0)),
             'accel': values[:, 25:28].astype(float)}
+
+
+def navsat_fix(msg: Any) -> Tuple[float, float, float, int]:
+    """Return ``(latitude deg, longitude deg, altitude m, status)`` of a NavSatFix."""
+    return (float(msg.latitude), float(msg.longitude), float(msg.altitude),
+            int(msg.status.status))
+
+
+def imu_orientation(msg: Any) -> Optional[np.ndarray]:
+    """Return an Imu's orientation ``(4,)`` x y z w, or None when not provided (REP-145)."""
+    if float(msg.orientation_covariance[0]) == -1.0:
+        return None
+    q = msg.orientation
+    return np.array([q.x, q.y, q.z, q.w], dtype=float)
