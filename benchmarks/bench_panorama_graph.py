@@ -25,6 +25,12 @@ Run: ``python benchmarks/bench_panorama_graph.py [--duration 10] [--configs 5x12
 5x640x480@25] [--stages] [--size 3600x2400] [--shm-mb 128]`` (``--size``: a fixed
 panorama size, as before issue 16; default: the node's, the cameras' resolution;
 ``--shm-mb``: see :data:`FASTDDS_LARGE_SHM`, without it the transport is the limit).
+
+``--hosts 2`` (issue 25, :mod:`panorama_hosts`): the cameras on host A, the bare
+subscriber and the stitcher on host B (network namespaces joined by a veth pair shaped to
+``--link-rate``, 1 Gbit/s), raw ``sensor_msgs/Image`` against image_transport's
+``compressed`` JPEG; complete sets/s at B, panoramas/s, the link's throughput and the
+decode cost per set. Needs root and ``ip netns``.
 """
 import argparse
 import json
@@ -67,20 +73,32 @@ def publisher(args):
     from accelcal_ros.rosutil.images import array_to_image_msg
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import CameraInfo, Image
+    from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
     rclpy, node = _init('bench_cameras')
     qos = QoSProfile(depth=args.pub_depth, reliability=ReliabilityPolicy.RELIABLE)
     topics = args.topics.split(',')
-    pubs = [node.create_publisher(Image, t, qos) for t in topics]
+    compressed = args.transport == 'compressed'
+    pubs = [node.create_publisher(CompressedImage, f'{t}/compressed', qos) if compressed
+            else node.create_publisher(Image, t, qos) for t in topics]
     att = node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
     if args.image_npy:
         images = [np.load(args.image_npy)] * len(topics)
+    elif args.rig:                          # the rig's views of a scene: real JPEG sizes
+        from panorama_hosts import rendered_views
+
+        images = rendered_views(args.rig, args.encoding)
     else:
         rng = np.random.default_rng(1)
         shape = (args.height, args.width) + ((3,) if args.encoding == 'bgr8' else ())
         images = [rng.integers(0, 256, shape, dtype=np.uint8) for _ in topics]
-    msgs = [array_to_image_msg(img, args.encoding, Image) for img in images]
+    if compressed:
+        from accelcal_ros.rosutil.compressed import encode_compressed
+
+        msgs = [CompressedImage(format=fmt, data=data) for fmt, data in (
+            encode_compressed(img, args.encoding, 'jpeg', args.jpeg_quality) for img in images)]
+    else:
+        msgs = [array_to_image_msg(img, args.encoding, Image) for img in images]
     for msg in msgs:
         msg.header.frame_id = 'camera_optical'
     info_pub, info = None, None
@@ -152,7 +170,13 @@ def bare(args):
             del seen[stamp]
 
     for topic in topics:
-        if args.raw:
+        if args.transport == 'compressed':  # image_transport's topic, stamps read raw
+            from accelcal_ros.rosutil.compressed import parse_compressed_cdr
+            from sensor_msgs.msg import CompressedImage
+
+            node.create_subscription(CompressedImage, f'{topic}/compressed', lambda d: on_frame(
+                parse_compressed_cdr(d).stamp_s), qos, raw=True)
+        elif args.raw:
             from accelcal_ros.rosutil.images import parse_image_cdr
 
             node.create_subscription(Image, topic, lambda d: on_frame(
@@ -240,9 +264,10 @@ def sink(args):
 
 
 # -- the parent -------------------------------------------------------------------------
-def child(role, *options):
-    """Start this script as ``role`` (a process); stdout is captured."""
-    return subprocess.Popen([sys.executable, HERE, '--role', role, *map(str, options)],
+def child(role, *options, prefix=()):
+    """Start this script as ``role`` (a process; ``prefix``: e.g. ip netns exec); stdout kept."""
+    return subprocess.Popen([*prefix, sys.executable, HERE, '--role', role,
+                             *map(str, options)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -481,6 +506,15 @@ def main():
     parser.add_argument('--shm-mb', type=float, default=0.0,
                         help='run every process with a Fast DDS shared-memory segment of '
                         'this size (MB; e.g. 128); 0: the middleware default (0.5 MB)')
+    parser.add_argument('--hosts', type=int, choices=(1, 2), default=1,
+                        help='2: cameras on host A, subscribers on host B across a shaped '
+                        'link, raw against compressed (network namespaces; root)')
+    parser.add_argument('--link-rate', default='1gbit', help='--hosts 2: tc rate of the link')
+    parser.add_argument('--transports', nargs='+', default=['raw', 'compressed'],
+                        choices=('raw', 'compressed'), help='--hosts 2: camera transports')
+    parser.add_argument('--transport', default='raw', choices=('raw', 'compressed'))
+    parser.add_argument('--rig', default='')
+    parser.add_argument('--jpeg-quality', type=int, default=90)
     parser.add_argument('--topics', default='')
     parser.add_argument('--width', type=int, default=1280)
     parser.add_argument('--height', type=int, default=960)
@@ -505,6 +539,10 @@ def main():
         for config in args.configs:
             stages(config, args.repeats, args.size)
         return 0
+    if args.hosts == 2:
+        from panorama_hosts import two_hosts_main
+
+        return two_hosts_main(args, sys.modules[__name__])
     holder = isolated_domain()
     print(f'stitcher in a ROS graph, {args.duration:g} s per phase (ROS_DOMAIN_ID '
           f'{os.environ.get("ROS_DOMAIN_ID", "0")}); panorama size '

@@ -6,7 +6,10 @@ Subscribes (relative; sensor-data QoS, which also receives from reliable publish
 arrives whole and a slow node only drops older frames; ``image_qos:=sensor_data`` for
 best-effort drivers): ``image`` (sensor_msgs/Image in any encoding of
 :mod:`accelcal_ros.rosutil.images`; received raw, the pixels read as a numpy view on the
-received buffer, no copy for mono8), ``camera_info``
+received buffer, no copy for mono8; ``image_transport:=compressed``: ``image/compressed``,
+sensor_msgs/CompressedImage as image_transport writes it, decoded off the executor thread
+by :mod:`accelcal_ros.rosutil.image_input`, undecodable frames counted in
+``undecodable_frames`` and skipped), ``camera_info``
 (sensor_msgs/CameraInfo: K, D and distortion_model) and ``attitude``
 (geometry_msgs/Vector3Stamped: x = roll, y = pitch of the IMU in rad, REP-103, as the
 ``attitude`` node publishes it; matched to each image by stamp).
@@ -27,7 +30,8 @@ from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
 from accelcal_ros.rosutil.dds import use_large_message_profile
-from accelcal_ros.rosutil.images import image_array, parse_image_cdr
+from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
+from accelcal_ros.rosutil.images import convert_color, image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
@@ -67,14 +71,25 @@ class P2PNode(Node):
         image_qos = qos if self.params['image_qos'] == 'sensor_data' else QoSProfile(
             depth=2, reliability=ReliabilityPolicy.RELIABLE)
         self._qos_warned = False
-        self.create_subscription(
-            Image, 'image', self._on_image, image_qos, raw=True,
-            event_callbacks=SubscriptionEventCallbacks(incompatible_qos=self._incompatible))
+        self.inputs = None
+        if self.params['image_transport'] == 'compressed':
+            self.inputs = CompressedInputs(
+                self, [compressed_topic(self, 'image')], image_qos,
+                lambda i, raw, grey, enc: self._on_decoded(raw, grey, enc),
+                lambda i, reason: self._on_undecodable(reason),
+                events=lambda i: SubscriptionEventCallbacks(
+                    incompatible_qos=self._incompatible))
+        else:
+            self.create_subscription(
+                Image, 'image', self._on_image, image_qos, raw=True,
+                event_callbacks=SubscriptionEventCallbacks(incompatible_qos=self._incompatible))
         self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info, qos)
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude, qos)
         self._camera_info_key = None
         self._counts = {'images': 0, 'poses': 0, 'no_pose': 0, 'ambiguous_resolved': 0,
                         'attitudes_rejected': 0}
+        if self.inputs is not None:
+            self._counts['undecodable_frames'] = 0
         self._last_reason = 'no image received yet'
         self._logged_reason = None
         self._last_quality = {}
@@ -87,6 +102,11 @@ class P2PNode(Node):
 
     def _topic(self, name):
         return self.resolve_topic_name(name)
+
+    def close(self):
+        """Stop the decode threads of the compressed input (the runner calls this)."""
+        if self.inputs is not None:
+            self.inputs.close()
 
     def _on_change(self, name, value):
         with self._lock:
@@ -146,6 +166,24 @@ class P2PNode(Node):
             self._counts['no_pose'] += 1
             self._note(f'image rejected: {exc}')
             return
+        self._process(raw, grey)
+
+    def _on_decoded(self, raw, image, encoding):
+        """Take a decoded compressed frame (decode thread): grey, then the pipeline."""
+        self._counts['images'] += 1
+        self._process(raw, convert_color(image, encoding, 'mono8'))
+
+    def _on_undecodable(self, reason):
+        """Count and skip a compressed frame that does not decode (decode thread)."""
+        self._counts['images'] += 1
+        self._counts['undecodable_frames'] += 1
+        self._last_reason = f'frame skipped: {reason}'
+        self.get_logger().warning(f'frame skipped: {reason} '
+                                  f'({self._counts["undecodable_frames"]} so far)',
+                                  throttle_duration_sec=10.0)
+
+    def _process(self, raw, grey):
+        """Run the pipeline on a grey image of ``raw``'s stamp and frame; publish."""
         header = Header(frame_id=raw.frame_id)
         header.stamp.sec, header.stamp.nanosec = raw.stamp_sec, raw.stamp_nanosec
         with self._lock:

@@ -65,6 +65,11 @@ P2P_PARAMS = (
               'large; a slow node only drops older frames) or sensor_data (best effort, '
               'depth 5: for best-effort drivers, which a reliable subscription does not '
               'receive from).', choices=('sensor_data', 'reliable'), read_only=True),
+    ParamSpec('image_transport', 'raw', 'raw: subscribe image (sensor_msgs/Image); '
+              'compressed: subscribe image/compressed (sensor_msgs/CompressedImage, JPEG or '
+              "PNG as image_transport's compressed plugin writes them), decoded off the "
+              'executor thread; frames that do not decode are counted and skipped.',
+              choices=('raw', 'compressed'), read_only=True),
     ParamSpec('diagnostics_period_s', 1.0, 'Period of /diagnostics messages.', minimum=0.1,
               maximum=60.0, unit='s'),
 )

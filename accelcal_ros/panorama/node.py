@@ -11,7 +11,10 @@ Subscribes:
   frames (keep-last: the publisher never waits for it); ``best_effort`` for best-effort
   publishers (a reliable subscription receives nothing from them: said in the log).
   The subscriptions are raw: the pixels are numpy views on the received buffer, copied
-  once, into the mosaic.
+  once, into the mosaic. ``image_transport:=compressed`` subscribes ``<topic>/compressed``
+  instead (sensor_msgs/CompressedImage, JPEG/PNG as image_transport writes them), decoded
+  in parallel off the executor (:mod:`accelcal_ros.rosutil.image_input`); a frame that
+  does not decode is counted as rejected and skipped.
 * ``attitude`` (geometry_msgs/Vector3Stamped: x = roll, y = pitch, rad, REP-103), as
   published by the ``attitude`` node; NaN, infinite and out-of-range values (roll beyond
   +-pi, pitch beyond +-pi/2) are rejected and counted (``rejected_attitudes``).
@@ -44,7 +47,9 @@ from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.rosutil.dds import large_message_profile_path, use_large_message_profile
-from accelcal_ros.rosutil.images import image_array, image_cdr, parse_image_cdr
+from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
+from accelcal_ros.rosutil.images import (convert_color, image_array, image_cdr,
+                                         parse_image_cdr)
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
@@ -84,6 +89,8 @@ class StitcherNode(Node):
         if len(topics) != len(self.rig):
             raise InputError(f'camera_topics has {len(topics)} topic(s) but the rig has '
                              f'{len(self.rig)} cameras ({", ".join(self.rig.names)})')
+        if v['image_transport'] == 'compressed':
+            topics = [compressed_topic(self, t) for t in topics]
         self.topics = topics
         width, height, focal_px = panorama_size(self.rig, v['width'], v['height'],
                                                 v['fov_h_deg'], v['fov_v_deg'],
@@ -115,12 +122,19 @@ class StitcherNode(Node):
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=v['image_queue_depth'],
                          reliability=ReliabilityPolicy.RELIABLE if reliable
                          else ReliabilityPolicy.BEST_EFFORT)
-        for i, topic in enumerate(topics):
+        self.inputs = None
+        for i, topic in enumerate(topics if v['image_transport'] == 'raw' else ()):
             events = SubscriptionEventCallbacks(
                 incompatible_qos=lambda event, i=i: self._incompatible(i, event))
             self.create_subscription(Image, topic, lambda data, i=i: self._on_image(i, data),
                                      qos, callback_group=group, raw=True,
                                      event_callbacks=events)
+        if v['image_transport'] == 'compressed':
+            self.inputs = CompressedInputs(
+                self, topics, qos, self._on_decoded, self.policy.reject_frame,
+                expected_sizes=self._sizes, callback_group=group,
+                events=lambda i: SubscriptionEventCallbacks(
+                    incompatible_qos=lambda event, i=i: self._incompatible(i, event)))
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude,
                                  qos_profile_sensor_data, callback_group=group)
         self.publisher = self.create_publisher(Image, 'panorama', 2)
@@ -135,7 +149,8 @@ class StitcherNode(Node):
             f'stitching {len(self.rig)} cameras ({inputs}) into a {geometry.width}x'
             f'{geometry.height} {geometry.projection} panorama of {geometry.fov_h_deg:g} x '
             f'{geometry.fov_v_deg:g} deg on "panorama" (images {v["image_reliability"]}, '
-            f'depth {v["image_queue_depth"]}; size from {size_from}; imu_to_camera from '
+            f'depth {v["image_queue_depth"]}, {v["image_transport"]}; size from '
+            f'{size_from}; imu_to_camera from '
             f'{source})')
         self._transport_hint(geometry)
 
@@ -199,6 +214,8 @@ class StitcherNode(Node):
 
     def close(self):
         """Stop the frame-set thread and the render thread (the runner calls this)."""
+        if self.inputs is not None:
+            self.inputs.close()
         self.worker.close()
         self.stitcher.close()
 
@@ -217,6 +234,13 @@ class StitcherNode(Node):
             self.policy.reject_frame(index, str(exc))
             return
         self.policy.add_frame(index, raw.stamp_s, image, time.monotonic())
+        self.worker.wake()
+
+    def _on_decoded(self, index, raw, image, encoding):
+        """Queue a decoded compressed frame (decode thread), converted if needed."""
+        want = None if self.encoding in _AS_IS.get(encoding, ()) else self.encoding
+        self.policy.add_frame(index, raw.stamp_s, convert_color(image, encoding, want),
+                              time.monotonic())
         self.worker.wake()
 
     def _on_attitude(self, msg):
@@ -308,6 +332,10 @@ class StitcherNode(Node):
             KeyValue(key='last_time_jump', value=policy.last_jump or 'none'),
             KeyValue(key='last_error', value=self._error or 'none'),
         ]
+        if self.inputs is not None:
+            main.values.append(KeyValue(key='decode_ms', value=f'{self.inputs.decode_ms():.1f}'))
+            main.values.append(KeyValue(key='decode_dropped',
+                                        value=str(self.inputs.pool.replaced)))
         statuses = [main]
         for i, state in enumerate(policy.cameras(now)):
             cam = self.rig.cameras[i]

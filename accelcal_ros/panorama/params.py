@@ -114,6 +114,12 @@ STITCHER_PARAMS = [
     ParamSpec('image_queue_depth', 2, 'keep-last depth of each image subscription: the '
               'newest frames are kept, older ones dropped when the node falls behind (the '
               'publisher never waits for it)', minimum=1, maximum=100, read_only=True),
+    ParamSpec('image_transport', 'raw', 'raw: subscribe each camera topic '
+              '(sensor_msgs/Image); compressed: subscribe <topic>/compressed '
+              "(sensor_msgs/CompressedImage, JPEG or PNG as image_transport's compressed "
+              'plugin writes them), decoded in parallel off the executor; frames that do '
+              'not decode are counted and skipped', choices=('raw', 'compressed'),
+              read_only=True),
     ParamSpec('compressed_output', False, 'also publish panorama/compressed '
               '(sensor_msgs/CompressedImage, JPEG) for viewers and recorders',
               read_only=True),

@@ -42,17 +42,25 @@ def ros_arg_value(value):
 class NodeProcess:
     """One node executable running as its own process; output goes to a log file."""
 
-    def __init__(self, exe, params=None, remaps=None, log_dir='.', name=None, args=()):
+    def __init__(self, exe, params=None, remaps=None, log_dir='.', name=None, args=(),
+                 prefix=(), env=None, argv=None):
+        """
+        Start ``exe`` (an installed executable; ``argv``: this command line instead).
+
+        ``prefix``: words before the command (e.g. ``ip netns exec HOST``); ``env``:
+        variables set on top of this process's environment.
+        """
         self.exe = exe
         self.log_path = os.path.join(str(log_dir), f'{name or exe}.log')
-        cmd = [executable(exe), *args, '--ros-args']
+        cmd = list(argv) if argv is not None else [executable(exe), *args, '--ros-args']
         for key, value in (params or {}).items():
             cmd += ['-p', f'{key}:={ros_arg_value(value)}']
         for src, dst in (remaps or {}).items():
             cmd += ['-r', f'{src}:={dst}']
         self._log = open(self.log_path, 'w')
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT,
-                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
+        self.proc = subprocess.Popen([*prefix, *cmd], stdout=self._log,
+                                     stderr=subprocess.STDOUT,
+                                     env=dict(os.environ, PYTHONUNBUFFERED='1', **(env or {})))
 
     def output(self):
         """Everything the process printed so far."""
