@@ -12,7 +12,7 @@ Offline commands of the levelled views (personal regions of interest).
 * ``accelcal study roi``: :mod:`.roi_study`.
 """
 import math
-from typing import Any, cast, Dict, Optional
+from typing import Any, cast, Dict, Optional, Tuple
 
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
 from accelcal_ros.errors import InputError
@@ -96,6 +96,32 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('-o', '--output', required=True, help='view image to write (PNG/JPEG); '
                    'for a bag a video (.mp4/.avi/.mkv) or a folder of PNGs')
     p.set_defaults(handler=_view)
+
+    p = subparsers.add_parser(
+        'serve', help='levelled views of rig images or a bag in a browser, one per tab')
+    p.add_argument('images', nargs='+', help='camera images, in rig order (with --roll '
+                   '--pitch); or one BAG with --images TOPIC... (played in a loop)')
+    _add_stitch_bag_arguments(p)
+    p.add_argument('--rig', required=True, help='rig YAML')
+    p.add_argument('--roll', type=angle_deg(180.0), help='reference camera roll, degrees')
+    p.add_argument('--pitch', type=angle_deg(90.0), help='reference camera pitch, degrees')
+    p.add_argument('--imu-to-camera', type=finite_float, nargs=9, metavar='R',
+                   help="rotation body -> reference camera optical frame (default: the rig's)")
+    p.add_argument('--host', default='127.0.0.1', help='address to listen on (127.0.0.1: '
+                   'this machine only; any other address requires the token)')
+    p.add_argument('--port', type=int_in(0, 65535), default=8080, help='TCP port (8080)')
+    p.add_argument('--token', help='token every request must carry (?token=...); '
+                   'generated and printed when serving beyond this machine without one')
+    p.add_argument('--max-views', type=int_in(1, 64), default=8,
+                   help='most tabs served at once; more are refused (8)')
+    p.add_argument('--width', type=int_in(MIN_VIEW_SIDE_PX, MAX_VIEW_SIDE_PX), default=960,
+                   help='view width, px (960)')
+    p.add_argument('--height', type=int_in(MIN_VIEW_SIDE_PX, MAX_VIEW_SIDE_PX), default=540,
+                   help='view height, px (540)')
+    p.add_argument('--max-frames', type=int_in(1, 10000), default=300,
+                   help='bag: frame sets kept in memory and played in a loop (300)')
+    p.add_argument('--quality', type=int_in(1, 100), default=80, help='JPEG quality (80)')
+    p.set_defaults(handler=_serve)
 
     p = study_subparsers.add_parser(
         'roi', help='false roll of the horizon inside a view panning across the sector, '
@@ -229,6 +255,102 @@ def _view_bag(args: Any) -> int:
     print(f'wrote {args.output}: {counts.frames} views {args.width}x{args.height}{moving} at '
           f'{fps:.1f} fps, {100.0 * float(np.mean(frames.covered)):.1f} % covered on '
           f'average, {frames.view.rebuild_count} lookup rebuilds')
+    return 0
+
+
+class _Collect:
+    """Frame sets of a bag kept in memory (what :func:`stitch_recording` hands over)."""
+
+    def __init__(self, rig: Any, limit: int) -> None:
+        self.channels = 3
+        self.rig = rig
+        self.limit = limit
+        self.images: list = [None] * len(rig)
+        self.sets: list = []
+        self.attitude = (0.0, 0.0)
+        self.stamp = 0.0
+
+    def set_image(self, index: int, image: np.ndarray) -> None:
+        self.images[index] = np.array(image)
+
+    def set_attitude(self, roll: float, pitch: float) -> None:
+        self.attitude = (roll, pitch)
+
+    def at_stamp(self, stamp_s: float) -> None:
+        self.stamp = stamp_s
+
+    def render(self) -> np.ndarray:
+        if len(self.sets) < self.limit:
+            self.sets.append((list(self.images), *self.attitude, self.stamp))
+        return np.zeros((2, 2), np.uint8)
+
+
+class _NoSink:
+    def write(self, frame: np.ndarray) -> None:
+        pass
+
+
+def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
+    """Return ``(frame sets, fps)`` of the command's images or bag."""
+    from accelcal_ros.panorama.cli import _is_bag_input, read_image
+
+    if not _is_bag_input(args):
+        if args.roll is None or args.pitch is None:
+            raise InputError('serve needs --roll and --pitch for image files (a BAG takes '
+                             '--attitude or --imu)')
+        if len(args.images) != len(rig):
+            raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
+                             'cameras; give one image per camera, in rig order')
+        images = [read_image(path) for path in args.images]
+        return [(images, math.radians(args.roll), math.radians(args.pitch), 0.0)], 10.0
+    from accelcal_ros.panorama.bag import stitch_recording
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.recording.streams import attitude_series
+
+    topics = args.image_topics or [None]
+    if len(topics) != len(rig):
+        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras')
+    model = None
+    if args.calibration:
+        from accelcal_ros.sensor.calibration_file import load_sensor_model
+
+        model = load_sensor_model(args.calibration)
+    collect = _Collect(rig, args.max_frames)
+    with open_bag(args.images[0], args.stamp) as bag:
+        t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
+        warn(warnings)
+        stitch_recording(bag, cast(Any, collect), topics, (t, roll, pitch),
+                         cast(Any, _NoSink()), args.sync_s, before_render=collect.at_stamp)
+    if not collect.sets:
+        raise InputError(f'no complete frame set with an attitude in {args.images[0]}')
+    stamps = [s[3] for s in collect.sets]
+    span = stamps[-1] - stamps[0]
+    fps = args.fps or (float(np.clip((len(stamps) - 1) / span, 1.0, 60.0)) if span > 0
+                       else 10.0)
+    return collect.sets, fps
+
+
+def _serve(args: Any) -> int:
+    from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
+    from accelcal_ros.panorama.serve import (is_loopback, make_token, serve_forever,
+                                             ViewServer)
+    from accelcal_ros.panorama.view_set import ViewSet
+
+    rig = load_rig(args.rig)
+    token = args.token
+    if token is not None and not token.strip():
+        raise InputError('--token must not be empty')
+    if not is_loopback(args.host) and token is None:
+        token = make_token()
+    frames, fps = _serve_frames(args, rig)
+    imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
+    views = ViewSet(rig, imu_to_camera, 3, args.max_views, args.width, args.height)
+    server = ViewServer(views, frames, fps, token, args.quality)
+    host = f'[{args.host}]' if ':' in args.host else args.host
+    where = f'http://{host}:{args.port}/' + (f'?token={token}' if token else '')
+    print(f'serving {len(frames)} frame set(s) at {fps:.1f} fps on {where} (up to '
+          f'{args.max_views} tabs of {args.width}x{args.height}; Ctrl-C stops)', flush=True)
+    serve_forever(server, args.host, args.port)
     return 0
 
 
