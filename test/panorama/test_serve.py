@@ -1,4 +1,4 @@
-"""``accelcal serve``'s server over HTTP and WebSockets (no browser): frames, caps, tokens, leaks."""
+"""The server of ``accelcal serve`` over HTTP and WebSockets: frames, caps, tokens, leaks."""
 import asyncio
 import json
 import math
@@ -73,7 +73,8 @@ def test_each_socket_is_its_own_view_and_steers_it(scene):
             b = await session.ws_connect(server.url + 'ws')
             info_a, _ = await _frame(a)
             await _frame(b)
-            assert info_a['fov'] == pytest.approx(60.0) and info_a['horizon_row'] == pytest.approx(119.5)
+            assert info_a['fov'] == pytest.approx(60.0)
+            assert info_a['horizon_row'] == pytest.approx(119.5)
             await a.send_str(json.dumps({'az': -30, 'el': 2, 'fov': 40}))
             await b.send_str(json.dumps({'az': 35, 'el': -3, 'fov': 50}))
             while True:
@@ -181,7 +182,7 @@ def test_disconnects_mid_frame_leak_nothing_over_200_cycles(scene):
         assert server.views.names() == []
         assert threading.active_count() <= threads + 1
         grown_kb = _rss_kb() - rss
-        assert grown_kb < 20_000, grown_kb  # a view with its lookup is ~1.5 MB: 200 leaked = 300 MB
+        assert grown_kb < 20_000, grown_kb  # a view and its lookup: ~1.5 MB; 200 leaked: 300 MB
     finally:
         server.stop()
 
