@@ -25,9 +25,10 @@ const wsUrl = (location.protocol === 'https:' ? 'wss://' : 'ws://') + location.h
 const ws = new WebSocket(wsUrl);
 ws.binaryType = 'blob';
 let pose = Object.assign({}, RESET), info = null, pending = null, times = [], url = null;
-let sent = 0, drawn = 0, lastSend = 0;
+let drawn = 0, lastSend = 0, measured = true;
+const latencies = [];  // ms from a pose sent to the first image of that pose drawn
 window.accelcal = {pose: () => pose, info: () => info, drawn: () => drawn,
-                   fps: () => fps(), state: () => ws.readyState, lastSend: () => lastSend};
+                   fps: () => fps(), state: () => ws.readyState, latencies: () => latencies};
 function fps() {
   const now = performance.now();
   times = times.filter(t => t > now - 2000);
@@ -38,7 +39,9 @@ function send(change) {
   pose.fov = Math.min(170, Math.max(0.5, pose.fov));
   pose.el = Math.min(90, Math.max(-90, pose.el));
   pose.az = ((pose.az + 180) % 360 + 360) % 360 - 180;
-  if (ws.readyState === 1) { lastSend = performance.now(); ws.send(JSON.stringify(pose)); }
+  if (ws.readyState === 1) {
+    lastSend = performance.now(); measured = false; ws.send(JSON.stringify(pose));
+  }
 }
 ws.onmessage = (event) => {
   if (typeof event.data === 'string') {
@@ -52,6 +55,10 @@ ws.onmessage = (event) => {
   img.onload = () => {
     if (url) URL.revokeObjectURL(url);
     url = next; info = meta; drawn += 1; times.push(performance.now());
+    if (!measured && meta && Math.abs(meta.az - pose.az) < 1e-6
+        && Math.abs(meta.el - pose.el) < 1e-6 && Math.abs(meta.fov - pose.fov) < 1e-6) {
+      latencies.push(performance.now() - lastSend); measured = true;
+    }
     draw(); ws.send(JSON.stringify({ack: meta ? meta.sent : 0}));
   };
   img.src = next;
