@@ -15,7 +15,7 @@ NODE_PARAMS: Dict[str, Tuple[str, str]] = {
     'imu_driver': ('accelcal_ros.driver.params', 'DRIVER_PARAMS'),
     'calibration': ('accelcal_ros.calibration.params', 'CALIBRATION_PARAMS'),
     'attitude': ('accelcal_ros.attitude.params', 'ATTITUDE_PARAMS'),
-    'stitcher': ('accelcal_ros.panorama.params', 'STITCHER_PARAMS'),
+    'stitcher': ('accelcal_ros.panorama.roi_params', 'STITCHER_WITH_ROI_PARAMS'),
     'p2p': ('accelcal_ros.p2p.params', 'P2P_PARAMS'),
     'lidar_calibration': ('accelcal_ros.lidar.params', 'LIDAR_CALIBRATION_PARAMS'),
     'cloud_assembler': ('accelcal_ros.lidar.params', 'CLOUD_ASSEMBLER_PARAMS'),

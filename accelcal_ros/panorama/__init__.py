@@ -15,4 +15,7 @@ levelled panorama at video rate.
 - :mod:`.stitch`     -- :class:`~.stitch.Stitcher`: one ``cv2.remap`` per frame.
 - :mod:`.render`     -- synthetic equirectangular scenes and camera views (ground truth).
 - :mod:`.horizon_study` -- ``accelcal study horizon`` (paper A, Fig. 6).
+- :mod:`.view`       -- levelled pinhole views (personal regions of interest); :mod:`.view_set`
+  named views over one mosaic; :mod:`.roi_node` the stitcher's ``roi/<name>`` topics;
+  :mod:`.serve` ``accelcal serve`` (browser); :mod:`.roi_study` ``accelcal study roi``.
 """

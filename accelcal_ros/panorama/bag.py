@@ -18,7 +18,7 @@ temporary name and renamed when complete); anything else: a folder of
 """
 from dataclasses import dataclass
 import os
-from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
@@ -98,12 +98,15 @@ class FrameSink:
 
 def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Optional[str]],
                      attitude: Sequence[ArrayLike], sink: FrameSink, sync_s: float = 0.05,
-                     attitude_tolerance_s: float = 0.1) -> StitchCounts:
+                     attitude_tolerance_s: float = 0.1,
+                     before_render: Optional[Callable[[float], None]] = None) -> StitchCounts:
     """
     Render one panorama per complete frame set of ``topics`` into ``sink``.
 
-    ``stitcher`` is a :class:`~accelcal_ros.panorama.stitch.Stitcher` for the rig;
-    ``attitude`` is ``(t_s, roll, pitch)`` sorted by time.
+    ``stitcher`` is a :class:`~accelcal_ros.panorama.stitch.Stitcher` for the rig (or
+    anything with its ``channels``, ``set_image``, ``set_attitude`` and ``render``);
+    ``attitude`` is ``(t_s, roll, pitch)`` sorted by time; ``before_render(stamp_s)``, if
+    given, is called before each frame is rendered (a view moving along a path).
     """
     import cv2
 
@@ -144,6 +147,8 @@ def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Opti
                 raise InputError(f'{names[k]}: {exc}') from None
         stitcher.set_attitude(float(np.interp(stamp, t_att, roll)),
                               float(np.interp(stamp, t_att, pitch)))
+        if before_render is not None:
+            before_render(stamp)
         sink.write(stitcher.render())
         counts.frames += 1
         latest = [None] * len(names)

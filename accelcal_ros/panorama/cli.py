@@ -61,6 +61,10 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--out', help='folder to write the three panoramas to (PNG)')
     p.set_defaults(handler=_study)
 
+    from accelcal_ros.panorama import view_cli  # levelled views: accelcal view, study roi
+
+    view_cli.register(subparsers, study_subparsers)
+
 
 def read_image(path: PathLike) -> 'np.ndarray':
     """Read an 8-bit image (grey or BGR) with a clear error for unreadable files."""

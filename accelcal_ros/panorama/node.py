@@ -46,6 +46,7 @@ from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
+from accelcal_ros.panorama.roi_node import RoiViews
 from accelcal_ros.rosutil.dds import large_message_profile_path, use_large_message_profile
 from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
 from accelcal_ros.rosutil.images import (convert_color, image_array, image_cdr,
@@ -78,6 +79,7 @@ class StitcherNode(Node):
 
         self._cv2 = cv2
         self.params = ParameterSet(self, STITCHER_PARAMS)
+        self.roi = RoiViews(self)  # levelled views roi/<name>: their parameters
         v = self.params.values
         if v['threads']:
             cv2.setNumThreads(int(v['threads']))
@@ -107,6 +109,7 @@ class StitcherNode(Node):
             grid_step=v['grid_step'], rebuild_threshold_deg=v['rebuild_threshold_deg'],
             blend_width_deg=v['blend_width_deg'],
             channels=1 if self.encoding == 'mono8' else 3)
+        self.roi.start(self.rig, mount, self.encoding, v['frame_id'])
         self._sizes = [(c.width, c.height) for c in self.rig.cameras]
         self.policy = FrameSetPolicy(
             [f'{c.name} ({t})' for c, t in zip(self.rig.cameras, topics)], self.params,
@@ -218,6 +221,7 @@ class StitcherNode(Node):
             self.inputs.close()
         self.worker.close()
         self.stitcher.close()
+        self.roi.close()
 
     # -- inputs ---------------------------------------------------------------------------
     def _on_image(self, index, data):
@@ -258,6 +262,7 @@ class StitcherNode(Node):
 
     def _stitch(self, frame_set):
         start = time.perf_counter()
+        self.roi.submit(frame_set)  # the levelled views render in their own thread
         self.stitcher.rebuild_threshold_deg = self.params['rebuild_threshold_deg']
         # remap and publishing run in the render thread (the next set's lookup is
         # rebuilt meanwhile); bad input raises here, before anything is queued

@@ -3,6 +3,7 @@ import os
 
 from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.panorama.params import STITCHER_PARAMS
+from accelcal_ros.panorama.roi_params import STITCHER_WITH_ROI_PARAMS
 from accelcal_ros.paramspec import check_all
 import pytest
 
@@ -13,8 +14,8 @@ def test_config_file_lists_every_parameter_with_its_default():
     """config/stitcher.yaml has every parameter, with the spec's default value."""
     data = load_yaml_mapping(os.path.join(ROOT, 'config', 'stitcher.yaml'))
     values = data['stitcher']['ros__parameters']
-    assert set(values) == {s.name for s in STITCHER_PARAMS}
-    for spec in STITCHER_PARAMS:
+    assert set(values) == {s.name for s in STITCHER_WITH_ROI_PARAMS}  # the views' too
+    for spec in STITCHER_WITH_ROI_PARAMS:
         assert values[spec.name] == pytest.approx(spec.default) if spec.kind in (
             'double', 'double_array') else values[spec.name] == spec.default
 

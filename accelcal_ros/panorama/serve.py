@@ -1,0 +1,315 @@
+"""
+``accelcal serve``: levelled views of a recorded rig in a browser, one operator per tab.
+
+An aiohttp server (no hand-written HTTP) serves one page; each browser tab opens a
+WebSocket and is given a view of its own in a :class:`~.view_set.ViewSet` (all views
+share one mosaic of the current frame set). The page sends the pose as JSON
+(``{"az": deg, "el": deg, "fov": deg}``: drag to pan, wheel to zoom, ``r``/Home to
+reset, arrow keys to step); the server renders the view (:class:`~.view.LevelledView`),
+encodes it as JPEG (``cv2.imencode``, libjpeg-turbo in the OpenCV wheels) and sends it as
+one binary message, preceded by a JSON text message with the view's state (pose, horizon
+row, covered fraction, frame number). The page acknowledges each frame once drawn; the
+server sends the next one only then, so at most one frame is in flight and a drag is
+answered by the newest pose, not by a queue of old ones (why a WebSocket and not MJPEG:
+MJPEG over HTTP has no back channel, so the pose would need a second connection, and the
+browser's MJPEG decoder gives no acknowledgement to pace frames by; see docs/panorama.md
+for the measured drag-to-image latency).
+
+Closing the tab (or losing the connection, even mid-frame) removes its view; more tabs
+than ``max_views`` get a clear refusal (close code 1013 and the reason on the page) while
+the others keep working.
+
+Who may look: the server binds to 127.0.0.1 unless ``--host`` says otherwise; on any
+other address a token is required (``--token``, else one is generated and printed), and
+every request -- the page, the WebSocket -- must carry it (``?token=...`` or
+``Authorization: Bearer ...``), 401 otherwise. TLS: put the server behind a reverse proxy
+(nginx, Caddy) that terminates HTTPS and forwards WebSocket upgrades.
+"""
+import asyncio
+import hmac
+import ipaddress
+import json
+import math
+import secrets
+import threading
+import time
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from accelcal_ros.errors import InputError
+from accelcal_ros.panorama.view import ViewPose
+from accelcal_ros.panorama.view_set import ViewSet
+import numpy as np
+
+DEFAULT_POSE_DEG = (0.0, 0.0, 60.0)
+"""Pose of a new tab and of the reset key: azimuth, elevation, fov_h (degrees)."""
+FrameSet = Tuple[List[np.ndarray], float, float, float]
+"""``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
+
+
+def is_loopback(host: str) -> bool:
+    """Return True for 127.0.0.0/8, ::1 and ``localhost``."""
+    if host == 'localhost':
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class ViewServer:
+    """
+    The web server over a :class:`~.view_set.ViewSet` and recorded frame sets.
+
+    ``frames`` are played in a loop at ``fps`` (one frame set: a still scene, rendered
+    again only when a view moves). ``token`` (None: none required) must be carried by
+    every request.
+    """
+
+    def __init__(self, views: ViewSet, frames: Sequence[FrameSet], fps: float = 10.0,
+                 token: Optional[str] = None, jpeg_quality: int = 80) -> None:
+        if not frames:
+            raise InputError('no frame set to serve')
+        if not (math.isfinite(fps) and fps > 0):
+            raise InputError(f'fps must be positive, got {fps!r}')
+        self.views = views
+        self.frames = list(frames)
+        self.fps = float(fps)
+        self.token = token
+        self.jpeg_quality = int(jpeg_quality)
+        self.frame_number = 0
+        self.refused = 0
+        self.served_frames = 0
+        self._next_id = 0
+        self._changed: Optional[asyncio.Condition] = None
+        self._runner: Any = None
+        self._thread: Optional[threading.Thread] = None
+        self._loop: Optional[asyncio.AbstractEventLoop] = None
+        self.url = ''
+        images, roll, pitch, stamp = self.frames[0]
+        views.set_frame(images, roll, pitch, stamp)
+
+    # -- the web application ------------------------------------------------------------
+    def app(self) -> Any:
+        """Return the aiohttp application (page, WebSocket, status)."""
+        from aiohttp import web
+
+        app = web.Application(middlewares=[self._auth])
+        app.router.add_get('/', self._page)
+        app.router.add_get('/ws', self._socket)
+        app.router.add_get('/status', self._status)
+        app.on_startup.append(self._start_playback)
+        return app
+
+    def _authorised(self, request: Any) -> bool:
+        if self.token is None:
+            return True
+        given = request.query.get('token', '')
+        header = request.headers.get('Authorization', '')
+        if header.startswith('Bearer '):
+            given = header[7:]
+        return hmac.compare_digest(given.encode(), self.token.encode())
+
+    @property
+    def _auth(self) -> Any:
+        from aiohttp import web
+
+        @web.middleware
+        async def auth(request: Any, handler: Any) -> Any:
+            if not self._authorised(request):
+                return web.Response(status=401, text='401: this server needs its token '
+                                    '(?token=... or Authorization: Bearer ...)\n')
+            return await handler(request)
+        return auth
+
+    async def _page(self, request: Any) -> Any:
+        from aiohttp import web
+
+        from accelcal_ros.panorama.serve_page import PAGE
+
+        return web.Response(text=PAGE, content_type='text/html',
+                            headers={'Cache-Control': 'no-store'})
+
+    async def _status(self, request: Any) -> Any:
+        from aiohttp import web
+
+        return web.json_response({'views': self.views.names(), 'refused': self.refused,
+                                  'max_views': self.views.max_views,
+                                  'frame': self.frame_number, 'served': self.served_frames,
+                                  'threads': threading.active_count()})
+
+    async def _start_playback(self, app: Any) -> None:
+        self._changed = asyncio.Condition()
+        if len(self.frames) > 1:
+            app['playback'] = asyncio.get_running_loop().create_task(self._play())
+
+    async def _play(self) -> None:
+        loop = asyncio.get_running_loop()
+        period = 1.0 / self.fps
+        k = 0
+        while True:
+            await asyncio.sleep(period)
+            k = (k + 1) % len(self.frames)
+            images, roll, pitch, stamp = self.frames[k]
+            await loop.run_in_executor(None, self.views.set_frame, images, roll, pitch, stamp)
+            self.frame_number += 1
+            assert self._changed is not None
+            async with self._changed:
+                self._changed.notify_all()
+
+    # -- one tab --------------------------------------------------------------------------
+    async def _socket(self, request: Any) -> Any:
+        from aiohttp import web, WSMsgType
+
+        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=4096)
+        await ws.prepare(request)
+        self._next_id += 1
+        name = f'tab{self._next_id}'
+        try:
+            self.views.add(name, ViewPose.from_degrees(*DEFAULT_POSE_DEG))
+        except InputError as exc:
+            self.refused += 1
+            await ws.send_str(json.dumps({'refused': str(exc)}))
+            await ws.close(code=1013, message=b'too many views')
+            return ws
+        state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0}
+        sender = asyncio.get_running_loop().create_task(self._send_frames(ws, name, state))
+        try:
+            async for msg in ws:
+                if msg.type != WSMsgType.TEXT:
+                    continue
+                await self._on_control(ws, name, state, msg.data)
+        finally:
+            sender.cancel()
+            try:
+                await sender
+            except (asyncio.CancelledError, ConnectionError):
+                pass
+            try:
+                self.views.remove(name)
+            except InputError:
+                pass
+        return ws
+
+    async def _on_control(self, ws: Any, name: str, state: Dict[str, Any], text: str) -> None:
+        try:
+            data = json.loads(text)
+            if not isinstance(data, dict):
+                raise ValueError('not an object')
+        except ValueError:
+            await ws.send_str(json.dumps({'error': 'control messages are JSON objects'}))
+            return
+        if 'ack' in data:
+            state['acked'] = True
+        if {'az', 'el', 'fov'} & set(data):
+            view = self.views.views.get(name)
+            if view is None:
+                return
+            az, el, fov = view.pose.degrees()
+            try:
+                pose = ViewPose.from_degrees(data.get('az', az), data.get('el', el),
+                                             data.get('fov', fov))
+                self.views.set_pose(name, pose)
+            except InputError as exc:  # the view keeps its last good pose
+                await ws.send_str(json.dumps({'error': str(exc)}))
+                return
+            state['dirty'] = True
+        assert self._changed is not None
+        async with self._changed:
+            self._changed.notify_all()
+
+    async def _send_frames(self, ws: Any, name: str, state: Dict[str, Any]) -> None:
+        import cv2
+
+        loop = asyncio.get_running_loop()
+        assert self._changed is not None
+        seen_frame = -1
+        while not ws.closed:
+            async with self._changed:
+                await self._changed.wait_for(
+                    lambda: ws.closed or (state['acked'] and (
+                        state['dirty'] or self.frame_number != seen_frame)))
+            if ws.closed:
+                return
+            state['dirty'] = False
+            seen_frame = self.frame_number
+
+            def render() -> Tuple[bytes, Dict[str, Any]]:
+                with self.views.lock:
+                    view = self.views.views[name]
+                    image = view.render(self.views.mosaic.image)
+                    az, el, fov = view.pose.degrees()
+                    info = {'az': az, 'el': el, 'fov': fov, 'width': view.width,
+                            'height': view.height, 'horizon_row': view.horizon_row(),
+                            'covered': view.covered_fraction(), 'frame': seen_frame,
+                            'name': name}
+                    ok, jpeg = cv2.imencode('.jpg', image,
+                                            [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+                if not ok:
+                    raise InputError('JPEG encoding failed')
+                return jpeg.tobytes(), info
+
+            try:
+                data, info = await loop.run_in_executor(None, render)
+            except KeyError:  # the view was removed meanwhile
+                return
+            state['acked'] = False
+            state['sent'] += 1
+            info['sent'] = state['sent']
+            info['server_time'] = time.time()
+            await ws.send_str(json.dumps(info))
+            await ws.send_bytes(data)
+            self.served_frames += 1
+
+    # -- running --------------------------------------------------------------------------
+    def start(self, host: str = '127.0.0.1', port: int = 0) -> str:
+        """Serve in a background thread (tests, benchmarks); return the page's URL."""
+        ready = threading.Event()
+        errors: List[BaseException] = []
+
+        def main() -> None:
+            from aiohttp import web
+
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            asyncio.set_event_loop(loop)
+            try:
+                self._runner = web.AppRunner(self.app())
+                loop.run_until_complete(self._runner.setup())
+                site = web.TCPSite(self._runner, host, port)
+                loop.run_until_complete(site.start())
+                sockets = site._server.sockets  # type: ignore[union-attr]
+                bound = sockets[0].getsockname()[1]
+                self.url = f'http://{host}:{bound}/'
+            except BaseException as exc:  # noqa: B902 - handed to the starting thread
+                errors.append(exc)
+                ready.set()
+                return
+            ready.set()
+            loop.run_forever()
+            loop.run_until_complete(self._runner.cleanup())
+            loop.close()
+
+        self._thread = threading.Thread(target=main, name='view_server', daemon=True)
+        self._thread.start()
+        ready.wait(30.0)
+        if errors:
+            raise InputError(f'cannot serve on {host}:{port}: {errors[0]}')
+        return self.url
+
+    def stop(self) -> None:
+        """Stop a server started by :meth:`start`."""
+        if self._loop is not None and self._thread is not None:
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(timeout=10.0)
+
+
+def serve_forever(server: ViewServer, host: str, port: int) -> None:
+    """Run the server in this thread until interrupted (``accelcal serve``)."""
+    from aiohttp import web
+
+    web.run_app(server.app(), host=host, port=port, print=None, handle_signals=True)
+
+
+def make_token() -> str:
+    """Return a fresh random token (URL-safe, 128 bits)."""
+    return secrets.token_urlsafe(16)

@@ -1,0 +1,458 @@
+r"""
+Personal regions of interest: a levelled rectilinear (pinhole) view rendered from the rig.
+
+Paper A: "navigation through the video panorama implies user-controlled personal regions
+of interest with adjustable electronic zoom and resolution". A *view* is a virtual
+pinhole camera that sits at the rig's centre, levelled by the attitude, and looks along
+``azimuth`` (rad, 0 = the panorama's centre column, i.e. the body heading; positive to the
+right) and ``elevation`` (rad, positive up), with a horizontal field of view ``fov_h``
+(the zoom) and an output size ``W x H``. Its intrinsics are
+
+.. math::  f_x = f_y = \frac{W/2}{\tan(fov_h/2)},\quad c_x = \frac{W-1}{2},\quad
+           c_y = \frac{H-1}{2}
+
+(OpenCV pixel centres at integers, as the panorama). Frames: the view's optical frame
+``V`` (x right, y down, z along the view) goes into the panorama frame ``P``
+(:mod:`.projection`: levelled, x right, y down along gravity, z the heading) by
+``R_PV = [x_V | y_V | z_V]`` with ``z_V = [cos el sin az, -sin el, cos el cos az]``,
+``x_V = [cos az, 0, -sin az]`` (horizontal, so the view's rows are parallel to the true
+horizon whatever the rig's roll and pitch) and ``y_V = z_V x x_V``. The true horizon
+(``el = 0``) is then the image row ``c_y + f tan(elevation)`` in every column.
+
+Pixels are rendered straight from the camera images, through the same code as the
+panorama (one home for both, no second copy): a view pixel's ray ``[u - c_x, v - c_y, f]``
+goes into camera ``i`` by ``Q_i R_PV diag(1, 1, f)`` with ``Q_i = R_0i T(roll, pitch)``
+(:meth:`~.rig_projection.RigProjection.camera_rotations`, eq. 7), the camera is chosen
+by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all in
+:class:`~.rig_projection.RigProjection`. Scaling a ray changes neither the camera choice
+(the largest ``z`` in every camera scales alike) nor its pixel, so the view's pixel
+offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
+and the zoom.
+
+The lookup (view pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast
+builder (:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
+interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
+error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
+against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
+map). The lookup is rebuilt only when the view's rotation in the cameras moves by more
+than ``rebuild_threshold_deg`` or the zoom changes; otherwise a frame is one
+``cv2.remap`` (16-bit fixed-point maps after two frames on one lookup, as the stitcher).
+Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` reports how many
+are seen.
+"""
+from dataclasses import dataclass
+import math
+from typing import Any, cast, Optional, Tuple
+
+from accelcal_ros.camera.rig import resolve_imu_to_camera
+from accelcal_ros.errors import InputError
+from accelcal_ros.panorama.lookup import LookupBuilder
+from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
+from accelcal_ros.panorama.rig_projection import RigProjection, tilt_matrix
+import numpy as np
+from numpy.typing import ArrayLike
+
+MAX_VIEW_SIDE_PX = 4096
+"""Largest width or height of a view (a 4096 x 4096 view's lookup is 128 MB)."""
+MIN_VIEW_SIDE_PX = 16
+"""Smallest width or height of a view."""
+MAX_FOV_H_DEG = 170.0
+"""Widest horizontal field of view accepted (a pinhole reaches infinity at 180 deg)."""
+MIN_FOV_H_DEG = 0.5
+"""Narrowest horizontal field of view accepted (an electronic zoom of ~100x)."""
+DEFAULT_VIEW_GAP_PX = 64
+"""Black gap between the images of a views-only mosaic (:class:`ViewMosaic`)."""
+
+
+def _finite(name: str, value: Any) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f'view {name} must be a number, got {value!r}') from None
+    if not math.isfinite(number):
+        raise InputError(f'view {name} must be finite, got {value!r}; keeping the last view')
+    return number
+
+
+@dataclass(frozen=True)
+class ViewPose:
+    """
+    Where a view looks and its zoom: azimuth, elevation, horizontal field of view (rad).
+
+    ``azimuth_rad`` (0 = the panorama's centre column, positive right; wrapped into
+    [-pi, pi)), ``elevation_rad`` in [-pi/2, pi/2] (positive up), ``fov_h_rad`` in
+    [0.5, 170] deg. Out-of-range or non-finite values raise :class:`InputError`.
+    """
+
+    azimuth_rad: float = 0.0
+    elevation_rad: float = 0.0
+    fov_h_rad: float = math.radians(60.0)
+
+    def __post_init__(self) -> None:
+        """Check and normalise the values (one clear reason per bad value)."""
+        az = _finite('azimuth', self.azimuth_rad)
+        el = _finite('elevation', self.elevation_rad)
+        fov = _finite('fov_h', self.fov_h_rad)
+        if not -math.pi / 2 - 1e-12 <= el <= math.pi / 2 + 1e-12:
+            raise InputError(f'view elevation must be within +-90 deg, got '
+                             f'{math.degrees(el):.6g} deg')
+        if not math.radians(MIN_FOV_H_DEG) - 1e-12 <= fov <= math.radians(MAX_FOV_H_DEG) + 1e-12:
+            raise InputError(f'view fov_h must be in [{MIN_FOV_H_DEG:g}, {MAX_FOV_H_DEG:g}] deg '
+                             f'for a rectilinear view (0 and 180 are impossible), got '
+                             f'{math.degrees(fov):.6g} deg')
+        az = (az + math.pi) % (2.0 * math.pi) - math.pi
+        object.__setattr__(self, 'azimuth_rad', az)
+        object.__setattr__(self, 'elevation_rad', min(max(el, -math.pi / 2), math.pi / 2))
+        object.__setattr__(self, 'fov_h_rad', fov)
+
+    @classmethod
+    def from_degrees(cls, azimuth_deg: float, elevation_deg: float,
+                     fov_h_deg: float) -> 'ViewPose':
+        """Return the pose from degrees (checked as the constructor)."""
+        return cls(math.radians(_finite('azimuth', azimuth_deg)),
+                   math.radians(_finite('elevation', elevation_deg)),
+                   math.radians(_finite('fov_h', fov_h_deg)))
+
+    def degrees(self) -> Tuple[float, float, float]:
+        """Return ``(azimuth, elevation, fov_h)`` in degrees."""
+        return (math.degrees(self.azimuth_rad), math.degrees(self.elevation_rad),
+                math.degrees(self.fov_h_rad))
+
+
+def check_view_size(width: Any, height: Any) -> Tuple[int, int]:
+    """Return ``(width, height)`` as ints, or raise :class:`InputError` beyond the caps."""
+    out = []
+    for name, value in (('width', width), ('height', height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) and not (
+                isinstance(value, float) and value.is_integer()):
+            raise InputError(f'view {name} must be an integer, got {value!r}')
+        if not MIN_VIEW_SIDE_PX <= int(value) <= MAX_VIEW_SIDE_PX:
+            raise InputError(f'view {name} must be in [{MIN_VIEW_SIDE_PX}, '
+                             f'{MAX_VIEW_SIDE_PX}] px, got {value}')
+        out.append(int(value))
+    return out[0], out[1]
+
+
+def focal_px(width: int, fov_h_rad: float) -> float:
+    """Return the view's focal length ``(W/2) / tan(fov_h/2)`` in pixels."""
+    return (width / 2.0) / math.tan(fov_h_rad / 2.0)
+
+
+def view_camera_matrix(width: int, height: int, fov_h_rad: float) -> np.ndarray:
+    """Return the view's ``K`` (3x3): ``fx = fy = (W/2)/tan(fov_h/2)``, ``(W-1)/2, (H-1)/2``."""
+    f = focal_px(width, fov_h_rad)
+    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def view_rotation(azimuth_rad: float, elevation_rad: float) -> np.ndarray:
+    """Return ``R_PV``: view optical frame -> panorama frame ``P`` (columns x_V, y_V, z_V)."""
+    ca, sa = math.cos(azimuth_rad), math.sin(azimuth_rad)
+    ce, se = math.cos(elevation_rad), math.sin(elevation_rad)
+    x = np.array([ca, 0.0, -sa])
+    z = np.array([ce * sa, -se, ce * ca])
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+def horizon_row(height: int, width: int, pose: ViewPose) -> float:
+    """Row of the true horizon in a levelled view: ``c_y + f tan(elevation)`` (every column)."""
+    return (height - 1) / 2.0 + focal_px(width, pose.fov_h_rad) * math.tan(pose.elevation_rad)
+
+
+class _ViewGrid:
+    """
+    The view as the fast builder sees it: pixel offsets ``u - c_x``, ``v - c_y`` and 1.
+
+    :class:`~.lookup.LookupBuilder` asks its geometry for a size and for rays; the view's
+    rays ``[u - c_x, v - c_y, 1]`` are separable like the panorama's, and the focal length
+    and direction are folded into the rotations (:meth:`ViewLookupBuilder.camera_rotations`).
+    """
+
+    projection = 'rectilinear'
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height = width, height
+        self.cx, self.cy = (width - 1) / 2.0, (height - 1) / 2.0
+
+    @property
+    def shape(self) -> Tuple[int, int]:
+        return self.height, self.width
+
+    def azimuth_rad(self, u: ArrayLike) -> np.ndarray:
+        # the builder takes sin/cos of these for its panorama tables; the view replaces
+        # those tables (ViewLookupBuilder._set_ray_tables), so any finite value does
+        return np.asarray(u, dtype=float) * 0.0
+
+    def elevation_rad(self, v: ArrayLike) -> np.ndarray:
+        return np.asarray(v, dtype=float) * 0.0
+
+    def rays(self, u: ArrayLike, v: ArrayLike) -> np.ndarray:
+        x, y = np.broadcast_arrays(np.asarray(u, float) - self.cx,
+                                   np.asarray(v, float) - self.cy)
+        return np.stack([x, y, np.ones_like(x)], axis=-1)
+
+
+class ViewLookupBuilder(LookupBuilder):
+    """
+    The panorama's fast lookup builder (:class:`~.lookup.LookupBuilder`) for one view.
+
+    Maps view pixels to the coordinates of the mosaic ``layout`` (shared with the stitcher
+    or a :class:`ViewMosaic`). :meth:`set_view` sets the direction and zoom; then
+    :meth:`~.lookup.LookupBuilder.build_fast` ``(roll, pitch)`` (or ``build_exact``) gives
+    the ``(H, W, 2)`` map.
+    """
+
+    def __init__(self, rig: Any, width: int, height: int, layout: MosaicLayout,
+                 imu_to_camera: ArrayLike, grid_step: int = 16,
+                 tolerance_px: float = 0.1) -> None:
+        width, height = check_view_size(width, height)
+        self._shared_layout = layout
+        self._focal = focal_px(width, math.radians(60.0))
+        self._view_matrix = np.diag([1.0, 1.0, self._focal])
+        self._density: Optional[float] = None
+        self._grid = _ViewGrid(width, height)
+        LookupBuilder.__init__(self, rig, cast(Any, self._grid), imu_to_camera, grid_step,
+                               tolerance_px)
+        # pixel-edge tables of the sub-block corners (the builder made panorama ones)
+        s = self.step
+        self._sin_az_e = (np.arange(-s, (self._tiles_w + 1) * s + 1) - 0.5
+                          - self._grid.cx).astype(np.float32)
+        self._cos_az_e = np.ones_like(self._sin_az_e)
+        self._sin_el_e = -(np.arange(-s, (self._tiles_h + 1) * s + 1) - 0.5
+                           - self._grid.cy).astype(np.float32)
+        self._cos_el_e = np.ones_like(self._sin_el_e)
+
+    def _place_images(self, gap: int) -> None:
+        """Use the shared mosaic layout (its gap, not one sized for this view)."""
+        self.layout = self._shared_layout
+        self._offsets = np.asarray(self.layout.offsets, dtype=np.float32)
+
+    def _set_ray_tables(self, pad: int, cols_end: int, rows_end: int) -> None:
+        """Tables of ``u - c_x`` and ``v - c_y`` (as ``sin az`` and ``-sin el``, cosines 1)."""
+        self._pad = pad
+        g = self._grid
+        self._sin_az = (np.arange(-pad, cols_end) - g.cx).astype(np.float32)
+        self._cos_az = np.ones_like(self._sin_az)
+        self._sin_el = -(np.arange(-pad, rows_end) - g.cy).astype(np.float32)
+        self._cos_el = np.ones_like(self._sin_el)
+
+    def seen_rows(self, q: np.ndarray) -> Tuple[int, int]:
+        """Every row of a view is evaluated (a view is small and mostly seen)."""
+        return 0, self.geometry.height
+
+    def cell_extent_px(self, step: int) -> float:
+        """Bound on a ``step`` cell's extent in camera pixels: diagonal / f times the density."""
+        if self._density is None:
+            self._density = max(self._pixel_density(c, lim) for c, lim in
+                                zip(self.rig.cameras, self._limits2))
+        return math.sqrt(2.0) * step / self._focal * self._density
+
+    def set_view(self, pose: ViewPose) -> None:
+        """Set the direction and zoom of the next build."""
+        self._focal = focal_px(self.geometry.width, pose.fov_h_rad)
+        self._view_matrix = view_rotation(pose.azimuth_rad, pose.elevation_rad) @ np.diag(
+            [1.0, 1.0, self._focal])
+        self._far = self.cell_extent_px(self.step)
+        frame_gap_px = np.array([(math.sqrt(lim) - radius) * min(c.K[0, 0], c.K[1, 1])
+                                 for c, (radius, lim) in zip(self.rig.cameras, self._radii)])
+        self._invalid_is_far = frame_gap_px > self._far
+
+    def camera_rotations(self, roll: float, pitch: float) -> np.ndarray:
+        """Return ``Q_i R_PV diag(1, 1, f)``: view pixel offsets -> camera ``i`` (eq. 7)."""
+        return RigProjection.camera_rotations(self, roll, pitch) @ self._view_matrix
+
+
+class ViewMosaic:
+    """
+    The rig's images side by side (:class:`~.mosaic.MosaicLayout`) for views without a stitcher.
+
+    :meth:`set_image` copies camera ``index``'s image (uint8 HxW or HxWx3, the rig's size)
+    in; grey images are expanded for a colour mosaic.
+    """
+
+    def __init__(self, rig: Any, channels: int = 3, gap: int = DEFAULT_VIEW_GAP_PX) -> None:
+        if channels not in (1, 3):
+            raise InputError(f'channels must be 1 or 3, got {channels!r}')
+        self.rig = rig
+        self.channels = channels
+        self.layout = MosaicLayout.for_rig(rig, gap=gap)
+        shape = (self.layout.height, self.layout.width) + ((3,) if channels == 3 else ())
+        self.image = np.zeros(shape, np.uint8)
+
+    def set_image(self, index: int, image: Optional[np.ndarray]) -> None:
+        """Copy camera ``index``'s image into the mosaic (None blacks it out)."""
+        import cv2
+
+        cam = self.rig.cameras[index]
+        x0, y0 = self.layout.offsets[index]
+        view = self.image[y0:y0 + cam.height, x0:x0 + cam.width]
+        if image is None:
+            view[...] = 0
+            return
+        image = np.asarray(image)
+        if image.dtype != np.uint8 or image.shape[:2] != (cam.height, cam.width) or \
+                image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (1, 3)):
+            raise InputError(f'camera {index} ({cam.name!r}): expected an 8-bit '
+                             f'{cam.width}x{cam.height} image (HxW or HxWx3), got '
+                             f'{image.dtype} {image.shape}')
+        if image.ndim == 3 and image.shape[2] == 1:
+            image = image[:, :, 0]
+        if self.channels == 3 and image.ndim == 2:
+            cv2.cvtColor(image, cv2.COLOR_GRAY2BGR, dst=view)
+        elif self.channels == 1 and image.ndim == 3:
+            view[...] = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        else:
+            np.copyto(view, image)
+
+
+class LevelledView:
+    """
+    One levelled virtual camera: pose, attitude, lookup and rendering from a mosaic.
+
+    ``layout`` is the mosaic the frames come in (:class:`ViewMosaic` or the stitcher's
+    ``builder.layout``); ``imu_to_camera`` defaults to the rig file's. Typical use::
+
+        mosaic = ViewMosaic(rig)
+        view = LevelledView(rig, mosaic.layout, 1280, 720, ViewPose.from_degrees(30, 0, 60))
+        view.set_attitude(roll, pitch)               # radians, REP-103
+        for i, image in enumerate(images):
+            mosaic.set_image(i, image)
+        frame = view.render(mosaic.image)            # owned by the view: copy to keep
+
+    Bad values raise :class:`InputError` and leave the view as it was.
+    """
+
+    def __init__(self, rig: Any, layout: MosaicLayout, width: int, height: int,
+                 pose: Optional[ViewPose] = None, imu_to_camera: Optional[ArrayLike] = None,
+                 grid_step: int = 16, tolerance_px: float = 0.1,
+                 rebuild_threshold_deg: float = 0.005) -> None:
+        import cv2
+
+        if imu_to_camera is None:
+            imu_to_camera = resolve_imu_to_camera(rig)[0]
+        if not (math.isfinite(rebuild_threshold_deg) and rebuild_threshold_deg >= 0):
+            raise InputError(f'rebuild_threshold_deg must be >= 0, got {rebuild_threshold_deg!r}')
+        self._cv2 = cv2
+        self.rig = rig
+        self.width, self.height = check_view_size(width, height)
+        self.builder = ViewLookupBuilder(rig, self.width, self.height, layout, imu_to_camera,
+                                         grid_step, tolerance_px)
+        self.rebuild_threshold_deg = float(rebuild_threshold_deg)
+        self.pose = pose if pose is not None else ViewPose()
+        self.attitude: Optional[Tuple[float, float]] = None
+        self._built: Optional[Tuple[np.ndarray, float]] = None  # (rotation, fov) of the map
+        self._map: Optional[np.ndarray] = None
+        self._fixed: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        self._band = (0, 0)
+        self._frames_on_map = 0
+        self._covered: Optional[float] = None
+        self._out: Optional[np.ndarray] = None
+        self.rebuild_count = 0
+
+    @property
+    def camera_matrix(self) -> np.ndarray:
+        """Return the view's ``K`` (3x3, pixels) for its current zoom."""
+        return view_camera_matrix(self.width, self.height, self.pose.fov_h_rad)
+
+    def horizon_row(self) -> float:
+        """Row of the true horizon in this view (every column: the view is levelled)."""
+        return horizon_row(self.height, self.width, self.pose)
+
+    def set_pose(self, pose: ViewPose) -> None:
+        """Point the view (the lookup is rebuilt at the next frame if it moved)."""
+        if not isinstance(pose, ViewPose):
+            raise InputError(f'expected a ViewPose, got {type(pose).__name__}')
+        self.pose = pose
+
+    def set_attitude(self, roll: float, pitch: float) -> None:
+        """Set the rig's roll and pitch (radians, REP-103); NaN/inf raise, keeping the last."""
+        roll, pitch = _finite('roll', roll), _finite('pitch', pitch)
+        self.attitude = (roll, pitch)
+
+    def _target(self) -> Tuple[np.ndarray, float]:
+        assert self.attitude is not None
+        t = tilt_matrix(self.attitude[0], self.attitude[1], self.builder.imu_to_camera)
+        return t @ view_rotation(self.pose.azimuth_rad, self.pose.elevation_rad), \
+            self.pose.fov_h_rad
+
+    def needs_rebuild(self) -> bool:
+        """Return True when the attitude or the view moved past the threshold since the map."""
+        if self._built is None:
+            return True
+        rotation, fov = self._target()
+        old_rotation, old_fov = self._built
+        cosine = (np.trace(rotation @ old_rotation.T) - 1.0) / 2.0
+        moved = math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
+        return moved > self.rebuild_threshold_deg or fov != old_fov
+
+    def update(self) -> bool:
+        """Rebuild the lookup if the attitude or the view moved; return True if it did."""
+        if self.attitude is None:
+            raise InputError('no attitude yet: call set_attitude() before rendering a view')
+        if not self.needs_rebuild():
+            return False
+        self.builder.set_view(self.pose)
+        self._map = self.builder.build_fast(*self.attitude)
+        self._band = self.builder.band
+        self._built = self._target()
+        self._fixed = None
+        self._frames_on_map = 0
+        self._covered = None
+        self.rebuild_count += 1
+        return True
+
+    def lookup(self) -> np.ndarray:
+        """Return the current map ``(H, W, 2)`` (rows outside the band hold no camera)."""
+        self.update()
+        assert self._map is not None
+        full = np.full((self.height, self.width, 2), OUTSIDE, np.float32)
+        r0, r1 = self._band
+        full[r0:r1] = self._map[r0:r1]
+        return full
+
+    def render(self, mosaic: np.ndarray) -> np.ndarray:
+        """
+        Return the view of ``mosaic`` (an internal buffer, overwritten next frame: copy it).
+
+        Rebuilds the lookup first when needed (:meth:`update`); pixels no camera sees are 0.
+        """
+        cv2 = self._cv2
+        self.update()
+        shape = (self.height, self.width) + mosaic.shape[2:]
+        if self._out is None or self._out.shape != shape:
+            self._out = np.zeros(shape, np.uint8)
+        out = self._out
+        r0, r1 = self._band
+        out[:r0] = 0
+        out[r1:] = 0
+        if r1 <= r0:
+            return out
+        fine = self._map
+        assert fine is not None
+        self._frames_on_map += 1
+        if self._fixed is None and self._frames_on_map >= 3:
+            self._fixed = cv2.convertMaps(fine[r0:r1], None, cv2.CV_16SC2)
+        if self._fixed is not None:
+            cv2.remap(mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
+                      dst=out[r0:r1], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        else:
+            cv2.remap(mosaic, fine[r0:r1], None, cv2.INTER_LINEAR, dst=out[r0:r1],
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return out
+
+    def covered_fraction(self) -> float:
+        """
+        Fraction of the view's pixels some camera sees (computed once per lookup).
+
+        A pixel counts when its mosaic point lies within a camera's frame, to half a pixel
+        beyond its outermost pixel centres (at least half its bilinear weight on pixels).
+        """
+        self.update()
+        if self._covered is None:
+            m = self.lookup()[::2, ::2]
+            seen = np.zeros(m.shape[:2], bool)
+            for (x0, y0), cam in zip(self.builder.layout.offsets, self.rig.cameras):
+                seen |= (m[..., 0] >= x0 - 0.5) & (m[..., 0] <= x0 + cam.width - 0.5) & \
+                    (m[..., 1] >= y0 - 0.5) & (m[..., 1] <= y0 + cam.height - 0.5)
+            self._covered = float(seen.mean())
+        return self._covered

@@ -1,0 +1,135 @@
+"""The stitcher's levelled views in a real ROS 2 graph: topics, K, steering, add/remove."""
+import math
+import time
+
+from accelcal_ros.camera.rig import ring_rig, save_rig
+from accelcal_ros.panorama import render
+from accelcal_ros.panorama.roi_study import render_view_truth
+from accelcal_ros.panorama.view import ViewPose
+from accelcal_ros.rosutil.images import array_to_image_msg, image_msg_to_array
+from accelcal_ros.rosutil.stamps import seconds_to_stamp
+from builtin_interfaces.msg import Time
+import cv2
+from geometry_msgs.msg import Vector3Stamped
+import numpy as np
+import pytest
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, Image
+
+ROLL, PITCH = math.radians(3.0), math.radians(7.0)
+QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
+TOPICS = ['cam0/image_raw', 'cam1/image_raw', 'cam2/image_raw']
+
+
+def _feed_until(collector, count, feed, timeout=20.0, accept=lambda msg: True):
+    """Call ``feed()`` every 0.1 s until ``collector`` holds ``count`` accepted messages."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        got = [m for m in collector.snapshot()[0] if accept(m)]
+        if len(got) >= count:
+            return got
+        feed()
+        time.sleep(0.1)
+    return [m for m in collector.snapshot()[0] if accept(m)]
+
+
+def _psnr_to_truth(msg, scene, pose):
+    image = image_msg_to_array(msg)
+    truth = render_view_truth(scene, msg.width, msg.height, pose)
+    covered = cv2.erode((image.max(axis=2) > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
+    return covered.mean(), render.psnr(image, truth, covered.astype(bool))
+
+
+@pytest.mark.graph
+def test_views_published_steered_added_and_removed(graph, tmp_path):
+    """roi/<name>/image matches the scene's view, camera_info holds K; steer/add/remove work."""
+    rig = ring_rig(3, 320, 240, 275.0, 45.0, distortion=(-0.08, 0.01, 0, 0, 0))
+    save_rig(tmp_path / 'rig.yaml', rig)
+    scene = render.make_scene(1800, 900, seed=2)
+    frames = render.render_camera_views(scene, rig, ROLL, PITCH)
+    proc = graph.start('stitcher', params={
+        'rig_file': str(tmp_path / 'rig.yaml'), 'width': 360, 'height': 240,
+        'camera_topics': TOPICS, 'roi_views': ['front:10,2,50'], 'roi_width': 320,
+        'roi_height': 240})
+    node = graph.node
+    pubs = [node.create_publisher(Image, t, QOS) for t in TOPICS]
+    att = node.create_publisher(Vector3Stamped, 'attitude', qos_profile_sensor_data)
+    steer = node.create_publisher(Vector3Stamped, 'roi/front/steer', 10)
+    images = graph.collect(Image, 'roi/front/image', QOS)
+    infos = graph.collect(CameraInfo, 'roi/front/camera_info', QOS)
+
+    def feed():
+        now = time.time()
+        msg = Vector3Stamped()
+        msg.header.stamp = seconds_to_stamp(now, Time)
+        msg.vector.x, msg.vector.y = ROLL, PITCH
+        att.publish(msg)
+        for pub, image in zip(pubs, frames):
+            header = Image().header
+            header.stamp = seconds_to_stamp(now, Time)
+            pub.publish(array_to_image_msg(image, 'bgr8', Image, header))
+
+    got = _feed_until(images, 2, feed)
+    assert len(got) >= 2, proc.output()
+    msg = got[-1]
+    assert (msg.width, msg.height, msg.encoding) == (320, 240, 'bgr8')
+    assert msg.header.frame_id == 'panorama_roi_front'
+    covered, psnr = _psnr_to_truth(msg, scene, ViewPose.from_degrees(10, 2, 50))
+    assert covered > 0.5 and psnr > 30.0, (covered, psnr)
+    info = _feed_until(infos, 1, feed)[-1]
+    f = 160 / math.tan(math.radians(25))
+    assert np.allclose(info.k, [f, 0, 159.5, 0, f, 119.5, 0, 0, 1])
+    assert (info.width, info.height) == (320, 240) and info.header.stamp == msg.header.stamp
+
+    # steering by the topic: x = azimuth, y = elevation, z = fov_h (rad)
+    def steer_to(az, el, fov):
+        m = Vector3Stamped()
+        m.vector.x, m.vector.y, m.vector.z = math.radians(az), math.radians(el), \
+            math.radians(fov)
+        steer.publish(m)
+
+    f30 = 160 / math.tan(math.radians(15))
+
+    def steered(m):
+        return abs(m.k[0] - f30) < 1e-6
+
+    def feed_steer():
+        steer_to(-30, 0, 30)
+        feed()
+
+    info = _feed_until(infos, 1, feed_steer, accept=steered)
+    assert info, proc.output()
+    images.clear()
+    got = _feed_until(images, 2, feed)
+    covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(-30, 0, 30))
+    assert covered > 0.5 and psnr > 30.0, (covered, psnr)
+    # a bad steer (fov 200 deg, NaN) is refused with the reason; the view keeps its pose
+    steer_to(0, 0, 200)
+    m = Vector3Stamped()
+    m.vector.x = float('nan')
+    steer.publish(m)
+    deadline = time.monotonic() + 10
+    while 'steer rejected' not in proc.output() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert 'fov_h must be in' in proc.output() or 'finite' in proc.output(), proc.output()
+    infos.clear()
+    assert steered(_feed_until(infos, 1, feed)[-1])
+
+    # add a view and remove 'front' at run time; a bad name is refused, nothing applied
+    bad = graph.set_parameters('stitcher', {'roi_views': ['front', 'no/slash']})
+    assert not bad[0].successful and 'topic name' in bad[0].reason
+    result = graph.set_parameters('stitcher', {'roi_views': ['side:40,0,60']})
+    assert result[0].successful, result[0].reason
+    side = graph.collect(Image, 'roi/side/image', QOS)
+    got = _feed_until(side, 2, feed)
+    assert len(got) >= 2, proc.output()
+    covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(40, 0, 60))
+    assert covered > 0.3 and psnr > 30.0
+    images.clear()
+    for _ in range(10):
+        feed()
+        time.sleep(0.1)
+    assert images.snapshot()[0] == []  # 'front' is gone
+    # too many views: refused with the cap
+    result = graph.set_parameters('stitcher', {'roi_views': [f'v{i}' for i in range(9)]})
+    assert not result[0].successful and 'at most 8' in result[0].reason

@@ -1,0 +1,225 @@
+"""The server of ``accelcal serve`` over HTTP and WebSockets: frames, caps, tokens, leaks."""
+import asyncio
+import json
+import math
+import threading
+
+from accelcal_ros.camera.rig import ring_rig
+from accelcal_ros.errors import InputError
+from accelcal_ros.panorama import render
+from accelcal_ros.panorama.roi_study import render_view_truth
+from accelcal_ros.panorama.serve import is_loopback, ViewServer
+from accelcal_ros.panorama.view import ViewPose
+from accelcal_ros.panorama.view_set import ViewSet
+import numpy as np
+import pytest
+
+aiohttp = pytest.importorskip('aiohttp', reason='aiohttp is not installed '
+                              '(tools/requirements-ros.txt)')
+ROLL, PITCH = math.radians(2.0), math.radians(5.0)
+
+
+@pytest.fixture(scope='module')
+def scene():
+    """Return the equirectangular test scene."""
+    return render.make_scene(1800, 900, seed=4)
+
+
+def _server(scene, token=None, max_views=3, frames=1):
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    sets = []
+    for k in range(frames):
+        roll = ROLL + 0.01 * k
+        sets.append((render.render_camera_views(scene, rig, roll, PITCH), roll, PITCH, k * 0.1))
+    views = ViewSet(rig, max_views=max_views, width=320, height=240)
+    server = ViewServer(views, sets, fps=20.0, token=token)
+    server.start('127.0.0.1', 0)
+    return server
+
+
+async def _frame(ws):
+    """Return ``(info, image)`` of the next frame (acknowledged)."""
+    import cv2
+
+    info = None
+    async for msg in ws:
+        if msg.type == aiohttp.WSMsgType.TEXT:
+            data = json.loads(msg.data)
+            if 'refused' in data or 'error' in data:
+                return data, None
+            info = data
+        elif msg.type == aiohttp.WSMsgType.BINARY:
+            image = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_COLOR)
+            await ws.send_str(json.dumps({'ack': info['sent']}))
+            return info, image
+    return None, None
+
+
+def _psnr(image, scene, pose):
+    truth = render_view_truth(scene, 320, 240, pose)
+    covered = image.max(axis=2) > 8
+    return render.psnr(image, truth, covered)
+
+
+def test_each_socket_is_its_own_view_and_steers_it(scene):
+    """Two sockets, two poses, two images matching the scene; a bad pose keeps the last."""
+    server = _server(scene)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            page = await session.get(server.url)
+            assert page.status == 200 and 'WebSocket' in await page.text()
+            a = await session.ws_connect(server.url + 'ws')
+            b = await session.ws_connect(server.url + 'ws')
+            info_a, _ = await _frame(a)
+            await _frame(b)
+            assert info_a['fov'] == pytest.approx(60.0)
+            assert info_a['horizon_row'] == pytest.approx(119.5)
+            await a.send_str(json.dumps({'az': -30, 'el': 2, 'fov': 40}))
+            await b.send_str(json.dumps({'az': 35, 'el': -3, 'fov': 50}))
+            while True:
+                info_a, image_a = await _frame(a)
+                if info_a['az'] == pytest.approx(-30):
+                    break
+            while True:
+                info_b, image_b = await _frame(b)
+                if info_b['az'] == pytest.approx(35):
+                    break
+            assert _psnr(image_a, scene, ViewPose.from_degrees(-30, 2, 40)) > 28
+            assert _psnr(image_b, scene, ViewPose.from_degrees(35, -3, 50)) > 28
+            assert np.abs(image_a.astype(int) - image_b).mean() > 10
+            await a.send_str(json.dumps({'az': 0, 'el': 0, 'fov': 180}))
+            error, _ = await _frame(a)
+            assert 'fov_h' in error['error']
+            await a.send_str('not json')
+            error, _ = await _frame(a)
+            assert 'JSON' in error['error']
+            assert server.views.views[server.views.names()[0]].pose.degrees()[0] == \
+                pytest.approx(-30)
+            status = await (await session.get(server.url + 'status')).json()
+            assert len(status['views']) == 2
+            await a.close()
+            await b.close()
+            for _ in range(100):
+                if not server.views.names():
+                    break
+                await asyncio.sleep(0.05)
+            assert server.views.names() == []
+
+    try:
+        asyncio.run(run())
+    finally:
+        server.stop()
+
+
+def test_more_tabs_than_the_cap_are_refused_and_the_others_keep_working(scene):
+    """Ten sockets on a 3-view server: 3 get frames, 7 a clear refusal (1013)."""
+    server = _server(scene, max_views=3, frames=3)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            sockets = [await session.ws_connect(server.url + 'ws') for _ in range(10)]
+            results = [await _frame(ws) for ws in sockets]
+            served = [r for r in results if r[1] is not None]
+            refused = [r for r in results if r[1] is None]
+            assert len(served) == 3 and len(refused) == 7
+            assert all('at most 3' in r[0]['refused'] for r in refused)
+            for ws, (_, image) in zip(sockets, results):
+                if image is None:
+                    await ws.receive()
+                    assert ws.closed and ws.close_code == 1013
+            live = [ws for ws, r in zip(sockets, results) if r[1] is not None]
+            for ws in live:  # playing at 20 fps: new frames keep coming
+                first, _ = await _frame(ws)
+                second, _ = await _frame(ws)
+                assert second['frame'] != first['frame']
+            for ws in sockets:
+                await ws.close()
+
+    try:
+        asyncio.run(run())
+        assert server.refused == 7
+    finally:
+        server.stop()
+
+
+def _rss_kb():
+    with open('/proc/self/status') as handle:
+        for line in handle:
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1])
+    return 0
+
+
+def test_disconnects_mid_frame_leak_nothing_over_200_cycles(scene):
+    """Connect, get half a frame, drop: views, threads and memory stay flat."""
+    server = _server(scene, max_views=4, frames=2)
+
+    async def cycle(session, k):
+        ws = await session.ws_connect(server.url + 'ws')
+        if k % 2:
+            await ws.receive()  # the JSON header only: drop before the JPEG is read
+        else:
+            await ws.send_str(json.dumps({'az': k % 40, 'fov': 30}))
+        await ws.close() if k % 3 else ws._response.connection.transport.abort()
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            for k in range(30):  # warm-up: thread pools, allocator
+                await cycle(session, k)
+            await asyncio.sleep(0.5)
+            threads, rss = threading.active_count(), _rss_kb()
+            for k in range(200):
+                await cycle(session, k)
+            for _ in range(100):
+                if not server.views.names():
+                    break
+                await asyncio.sleep(0.05)
+            return threads, rss
+
+    try:
+        threads, rss = asyncio.run(run())
+        assert server.views.names() == []
+        assert threading.active_count() <= threads + 1
+        grown_kb = _rss_kb() - rss
+        assert grown_kb < 20_000, grown_kb  # a view and its lookup: ~1.5 MB; 200 leaked: 300 MB
+    finally:
+        server.stop()
+
+
+def test_token_is_required_on_every_request(scene):
+    """With a token: 401 without it or with a wrong one; the page and socket work with it."""
+    server = _server(scene, token='s3cret')
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            for path in ('', 'ws', 'status'):
+                assert (await session.get(server.url + path)).status == 401
+            assert (await session.get(server.url + '?token=nope')).status == 401
+            with pytest.raises(aiohttp.WSServerHandshakeError) as info:
+                await session.ws_connect(server.url + 'ws')
+            assert info.value.status == 401
+            assert (await session.get(server.url + '?token=s3cret')).status == 200
+            header = {'Authorization': 'Bearer s3cret'}
+            assert (await session.get(server.url + 'status', headers=header)).status == 200
+            ws = await session.ws_connect(server.url + 'ws?token=s3cret')
+            info, image = await _frame(ws)
+            assert image is not None and image.shape == (240, 320, 3)
+            await ws.close()
+
+    try:
+        asyncio.run(run())
+    finally:
+        server.stop()
+
+
+def test_loopback_and_bad_server_arguments():
+    """Only loopback addresses count as local; no frames or a bad fps is refused."""
+    assert is_loopback('127.0.0.1') and is_loopback('::1') and is_loopback('localhost')
+    assert not is_loopback('0.0.0.0') and not is_loopback('192.168.1.5')
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    with pytest.raises(InputError, match='no frame'):
+        ViewServer(ViewSet(rig), [])
+    frames = [([np.zeros((240, 320, 3), np.uint8)] * 3, 0.0, 0.0, 0.0)]
+    with pytest.raises(InputError, match='fps'):
+        ViewServer(ViewSet(rig), frames, fps=0.0)
