@@ -29,8 +29,8 @@ from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
-from accelcal_ros.session_interface import OK, SessionProgress, WARN
 from accelcal_ros.rosutil.static_tf import StaticBroadcaster
+from accelcal_ros.session_interface import OK, SessionProgress, WARN
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
