@@ -28,4 +28,4 @@ def test_p2p_journey_bag_topics(tmp_path):
         counts = {name: t.count for name, t in reader.topics().items()}
     assert counts['/camera/image_raw'] == counts['/camera/camera_info'] == 20
     assert counts['/imu/data_raw'] == 100
-    assert [name for name, _ in JOURNEYS] == ['imu', 'rig', 'drive', 'p2p', 'lidar']
+    assert [name for name, _ in JOURNEYS] == ['imu', 'rig', 'drive', 'p2p', 'lidar', 'map']

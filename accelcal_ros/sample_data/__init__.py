@@ -22,6 +22,11 @@ the README's names, so that every ``accelcal`` command of the README runs as pri
 ``boresight_positions``  the same protocol as files: ``posNN.pcd`` + ``posNN_imu.csv``
 ``scan.pcd``           one moving-platform scan (absolute per-point ``timestamp``)
 ``poses.csv``          the platform poses ``t,x,y,z,qx,qy,qz,qw`` around that scan
+``drive_trajectory.csv``  a GNSS/INS trajectory ``t,lat,lon,h,roll,pitch,yaw`` (10 s at
+                       55.75 N 37.6 E, UTM 37N) with ``drive_scan.pcd`` (targets at known
+                       geodetic coordinates and VLP-16 revolutions), ``drive_boresight.yaml``
+``rosbag2_ins``        the same drive as an INS would record it: ``/gnss/fix``
+                       (NavSatFix, a few NO_FIX), ``/ins/odom``, ``/velodyne_points``
 =====================  ==================================================================
 
 The scanner's boresight and lever arm are the same in every LiDAR recording (the drive's
@@ -42,6 +47,7 @@ JOURNEYS: Tuple[Tuple[str, str], ...] = (
     ('drive', 'rosbag2_drive, img0.png, img1.png, img2.png'),
     ('p2p', 'rosbag2_p2p'),
     ('lidar', 'rosbag2_boresight, boresight_positions, scan.pcd, poses.csv'),
+    ('map', 'drive_trajectory.csv, drive_scan.pcd, drive_boresight.yaml, rosbag2_ins'),
 )
 
 
@@ -54,11 +60,12 @@ def journey_outputs(name: str) -> List[str]:
                      f'{", ".join(j for j, _ in JOURNEYS)}')
 
 
-def _writers() -> Dict[str, Callable[[str], None]]:
+def _writers() -> Dict[str, Callable[[str], object]]:
+    from accelcal_ros.lidar.geo_sim import write_sample as write_map
     from accelcal_ros.sample_data import cameras, imu, lidar, p2p
 
     return {'imu': imu.write, 'rig': cameras.write_rig_bag, 'drive': cameras.write_drive,
-            'p2p': p2p.write, 'lidar': lidar.write}
+            'p2p': p2p.write, 'lidar': lidar.write, 'map': write_map}
 
 
 def write_sample_data(directory: str, only: Optional[Sequence[str]] = None,
