@@ -222,3 +222,17 @@ def test_las_writer_streams_in_batches_and_is_atomic(tmp_path):
             raise RuntimeError('interrupted')
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ['c.laz']
+
+
+def test_heading_conventions():
+    """ENU yaw 0 faces east (CCW); NED heading 90 (clockwise from north) is the same."""
+    east = enu_from_body_rpy(0.0, 0.0, 0.0)[0]
+    assert np.allclose(east, np.eye(3))
+    north = enu_from_body_rpy(0.0, 0.0, np.pi / 2)[0]
+    assert np.allclose(north @ [1, 0, 0], [0, 1, 0]) and np.allclose(north @ [0, 1, 0],
+                                                                     [-1, 0, 0])
+    assert np.allclose(enu_from_body_rpy(0.0, 0.0, np.pi / 2, 'ned')[0], np.eye(3))
+    nose_up_ned = enu_from_body_rpy(0.0, np.radians(10.0), 0.0, 'ned')[0]   # facing north
+    assert np.allclose(nose_up_ned @ [1, 0, 0], [0, np.cos(0.1745329), np.sin(0.1745329)])
+    right_wing_down = enu_from_body_rpy(np.radians(10.0), 0.0, np.pi / 2, 'ned')[0]
+    assert (right_wing_down @ [0, 1, 0])[2] > 0.17         # left wing (body +y) goes up
