@@ -98,6 +98,14 @@ def _write_boresight(path):
                                        'rpy_std_deg': [0.01, 0.01, 0.02]}))
 
 
+def _write_trajectory(path):
+    from accelcal_ros.fileio import write_text_atomic
+
+    rows = [f'{t:.2f},{55.75 + 1e-5 * t:.9f},{37.6 + 2e-5 * t:.9f},150.0,1.0,-2.0,{30 + t:.1f}'
+            for t in np.arange(0.0, 2.0, 0.1)]
+    write_text_atomic(path, 't,lat,lon,h,roll,pitch,yaw\n' + '\n'.join(rows) + '\n')
+
+
 def _write_poses(path):
     from accelcal_ros.lidar.poses import PoseStream, write_poses_csv
 
@@ -200,6 +208,8 @@ READERS = {
                        lambda p: _function('accelcal_ros.lidar.boresight:load_boresight')(p)),
     'poses_csv': ('poses.csv', _write_poses,
                   lambda p: _function('accelcal_ros.lidar.poses:read_poses_csv')(p)),
+    'trajectory_csv': ('traj.csv', _write_trajectory, lambda p: _function(
+        'accelcal_ros.lidar.geotraj:read_trajectory_csv')(p)),
     'imu_log_csv': ('imu.csv', _write_imu,
                     lambda p: _function('accelcal_ros.lidar.imu_log:read_imu_csv')(p)),
     'pcd_ascii': ('a.pcd', _pcd_writer('ascii'), _read_pcd),

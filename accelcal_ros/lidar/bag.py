@@ -95,7 +95,7 @@ def collect_positions(bag: BagReader, points_topic: Optional[str], imu_topic: Op
 
 def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseStream,
                        boresight: ArrayLike, lever_arm_m: ArrayLike = (0.0, 0.0, 0.0),
-                       time_field: Optional[str] = None
+                       time_field: Optional[str] = None, max_gap_s: Optional[float] = None
                        ) -> Tuple[np.ndarray, Dict[str, int], List[str]]:
     """
     Georeference every scan of a PointCloud2 topic; returns ``(cloud, totals, warnings)``.
@@ -107,7 +107,8 @@ def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseS
 
     name = bag.select_topic(points_topic, (convert.POINTCLOUD2,), '--points')
     parts, stamp_log = [], StampLog()
-    totals = {'total': 0, 'kept': 0, 'before_span': 0, 'after_span': 0, 'non_finite': 0}
+    totals = {'total': 0, 'kept': 0, 'before_span': 0, 'after_span': 0, 'non_finite': 0,
+              'in_gap': 0}
     for message in bag.messages([name], f'georeferencing {name}'):
         stamp_log.add(message)
         cloud = convert.cloud_array(message.msg)
@@ -119,7 +120,8 @@ def georeference_scans(bag: BagReader, points_topic: Optional[str], poses: PoseS
             raise InputError(f'{name}: {exc}') from None
         pts = xyz(cloud)
         good = finite_mask(pts)
-        out, keep, stats = georeference(pts[good], times[good], poses, boresight, lever_arm_m)
+        out, keep, stats = georeference(pts[good], times[good], poses, boresight, lever_arm_m,
+                                        max_gap_s=max_gap_s)
         for key in totals:
             totals[key] += getattr(stats, key)
         totals['non_finite'] += int((~good).sum())

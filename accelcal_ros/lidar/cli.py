@@ -179,12 +179,14 @@ def _georeference_bag(args: argparse.Namespace) -> int:
             warn(odom.warnings)
             poses = PoseStream(odom.t, odom.position, odom.quat)
         cloud, totals, warnings = georeference_scans(bag, args.points, poses, boresight,
-                                                     args.lever_arm, args.time_field)
+                                                     args.lever_arm, args.time_field,
+                                                     args.max_gap_s)
     warn(warnings)
     write_cloud(args.output, cloud, args.data)
     print(f'{totals["kept"]} of {totals["total"]} points georeferenced; dropped '
           f'{totals["before_span"]} before and {totals["after_span"]} after the pose stream, '
-          f'{totals["non_finite"]} non-finite')
+          f'{totals["in_gap"]} in gaps longer than --max-gap-s, {totals["non_finite"]} '
+          'non-finite')
     print(f'wrote {args.output}')
     return 0
 

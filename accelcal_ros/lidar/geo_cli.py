@@ -18,6 +18,8 @@ if TYPE_CHECKING:  # (heavy: pyproj, scipy; imported where a command runs)
 
 CHUNK_POINTS = 1 << 20
 """Points georeferenced and written at a time from a PCD/PLY scan (memory bound)."""
+DEFAULT_MAX_GAP_S = 1.0
+"""Longest trajectory gap (s) interpolated across with a geodetic trajectory."""
 
 
 def add_arguments(g: argparse.ArgumentParser) -> None:
@@ -40,9 +42,14 @@ def add_arguments(g: argparse.ArgumentParser) -> None:
     g.add_argument('--crs', metavar='EPSG:NNNN',
                    help='projected CRS of the output (default: WGS 84 / UTM zone of the first '
                         'fix, north or south)')
-    g.add_argument('--max-gap-s', type=float_in(0.0, 3600.0, low_open=True), default=1.0,
+    g.add_argument('--max-gap-s', type=float_in(0.0, 3600.0, low_open=True), default=None,
                    help='points between two poses further apart than this are dropped, never '
-                        'interpolated (s, default 1)')
+                        'interpolated (s; default %g with a geodetic trajectory, no limit '
+                        'with --poses/--odom)' % DEFAULT_MAX_GAP_S)
+
+
+def _max_gap(args: argparse.Namespace) -> float:
+    return DEFAULT_MAX_GAP_S if args.max_gap_s is None else float(args.max_gap_s)
 
 
 def wants_map(args: argparse.Namespace) -> bool:
@@ -165,7 +172,7 @@ def georeference_map(args: argparse.Namespace, boresight: np.ndarray) -> int:
         raise InputError('georeference needs --cloud with --trajectory, or a BAG with --navsat '
                          '(or --trajectory)')
     traj = read_trajectory_csv(args.trajectory, args.heading)
-    geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, args.max_gap_s)
+    geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, _max_gap(args))
     return _run(args, geo, lambda out: _feed_file(args, geo, out))
 
 
@@ -202,7 +209,7 @@ def _georeference_bag(args: argparse.Namespace, boresight: np.ndarray) -> int:
             traj = read_trajectory_csv(args.trajectory, args.heading)
         else:
             traj = read_geodetic_trajectory(bag, args.navsat, args.imu, args.odom)
-        geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, args.max_gap_s)
+        geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, _max_gap(args))
         return _run(args, geo, lambda out: stream_scans(bag, args.points, geo, out.add,
                                                         args.time_field))
 

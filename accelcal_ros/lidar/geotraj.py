@@ -151,6 +151,7 @@ class MapGeoreferencer:
         self.boresight = boresight
         self.lever_arm_m = lever_arm_m
         self.max_gap_s = max_gap_s
+        self.crs_given = crs is not None
         lat0, lon0 = float(trajectory.lat_deg[0]), float(trajectory.lon_deg[0])
         self.origin_m = self.projection.from_geodetic(lat0, lon0, trajectory.h_m[0])[0]
 
@@ -161,9 +162,9 @@ class MapGeoreferencer:
         return lines
 
     def warnings(self) -> List[str]:
-        """Return warnings about the trajectory (zone crossing)."""
+        """Return warnings about the trajectory (zone crossing, when the zone was chosen)."""
         crossing = None
-        if self.projection.crs.utm_zone is not None:
+        if not self.crs_given:
             crossing = self.trajectory.zone_warning()
         return list(self.trajectory.warnings) + ([crossing] if crossing else [])
 

@@ -193,3 +193,46 @@ def test_southern_hemisphere_uses_the_south_zone(tmp_path):
     truth = MapProjection('EPSG:32734').from_geodetic(south.target_lat_deg,
                                                       south.target_lon_deg, south.target_h_m)
     assert np.linalg.norm(out - truth, axis=1).max() < TOL_M
+
+
+def test_las_writer_streams_in_batches_and_is_atomic(tmp_path):
+    """Many small batches read back whole; a failure leaves the old file and no temp."""
+    from accelcal_ros.lidar.las import LasCloudWriter
+
+    proj = MapProjection('EPSG:32637')
+    rng = np.random.default_rng(2)
+    pts = np.array([412000.0, 6179000.0, 150.0]) + rng.uniform(-100, 100, (5000, 3))
+    times = 1.7e9 + np.arange(5000) * 1e-4
+    path = tmp_path / 'c.laz'
+    with LasCloudWriter(path, proj.wkt(), pts[0], True, True, proj.name,
+                        flush_points=1000) as writer:
+        for a in range(0, 5000, 700):
+            writer.write(pts[a:a + 700], times[a:a + 700], ring=(np.arange(5000) % 16)[a:a + 700])
+    las = laspy.read(path)
+    assert len(las.x) == 5000 and las.header.point_count == 5000
+    assert np.abs(np.stack([las.x, las.y, las.z], 1) - pts).max() <= 0.0005 + 1e-9
+    assert np.array_equal(las.gps_time, unix_to_adjusted_gps(times))
+    assert np.array_equal(las.ring, np.arange(5000) % 16)
+    assert np.allclose(las.header.mins, np.round(pts.min(axis=0), 3))
+    before = path.read_bytes()
+    with pytest.raises(RuntimeError):
+        with LasCloudWriter(path, proj.wkt(), pts[0], True, False,
+                            flush_points=1000) as writer:
+            writer.write(pts, times)
+            raise RuntimeError('interrupted')
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['c.laz']
+
+
+def test_heading_conventions():
+    """ENU yaw 0 faces east (CCW); NED heading 90 (clockwise from north) is the same."""
+    east = enu_from_body_rpy(0.0, 0.0, 0.0)[0]
+    assert np.allclose(east, np.eye(3))
+    north = enu_from_body_rpy(0.0, 0.0, np.pi / 2)[0]
+    assert np.allclose(north @ [1, 0, 0], [0, 1, 0]) and np.allclose(north @ [0, 1, 0],
+                                                                     [-1, 0, 0])
+    assert np.allclose(enu_from_body_rpy(0.0, 0.0, np.pi / 2, 'ned')[0], np.eye(3))
+    nose_up_ned = enu_from_body_rpy(0.0, np.radians(10.0), 0.0, 'ned')[0]   # facing north
+    assert np.allclose(nose_up_ned @ [1, 0, 0], [0, np.cos(0.1745329), np.sin(0.1745329)])
+    right_wing_down = enu_from_body_rpy(np.radians(10.0), 0.0, np.pi / 2, 'ned')[0]
+    assert (right_wing_down @ [0, 1, 0])[2] > 0.17         # left wing (body +y) goes up
