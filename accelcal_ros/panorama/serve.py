@@ -81,6 +81,7 @@ class ViewServer:
         self.served_frames = 0
         self._next_id = 0
         self._changed: Optional[asyncio.Condition] = None
+        self._playback: Optional['asyncio.Task[None]'] = None
         self._runner: Any = None
         self._thread: Optional[threading.Thread] = None
         self._loop: Optional[asyncio.AbstractEventLoop] = None
@@ -98,6 +99,7 @@ class ViewServer:
         app.router.add_get('/ws', self._socket)
         app.router.add_get('/status', self._status)
         app.on_startup.append(self._start_playback)
+        app.on_cleanup.append(self._stop_playback)
         return app
 
     def _authorised(self, request: Any) -> bool:
@@ -140,7 +142,16 @@ class ViewServer:
     async def _start_playback(self, app: Any) -> None:
         self._changed = asyncio.Condition()
         if len(self.frames) > 1:
-            app['playback'] = asyncio.get_running_loop().create_task(self._play())
+            self._playback = asyncio.get_running_loop().create_task(self._play())
+
+    async def _stop_playback(self, app: Any) -> None:
+        if self._playback is not None:
+            self._playback.cancel()
+            try:
+                await self._playback
+            except asyncio.CancelledError:
+                pass
+            self._playback = None
 
     async def _play(self) -> None:
         loop = asyncio.get_running_loop()
