@@ -42,6 +42,8 @@ import numpy as np
 
 DEFAULT_POSE_DEG = (0.0, 0.0, 60.0)
 """Pose of a new tab and of the reset key: azimuth, elevation, fov_h (degrees)."""
+RENDER_THREADS = 4
+"""Threads that render and JPEG-encode the tabs' views (and copy in frame sets)."""
 FrameSet = Tuple[List[np.ndarray], float, float, float]
 """``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
 
@@ -166,6 +168,11 @@ class ViewServer:
     async def _start_playback(self, app: Any) -> None:
         self._changed = asyncio.Condition()
         self._loop = asyncio.get_running_loop()
+        # a bounded pool renders and encodes (OpenCV releases the GIL): threads stay flat
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._loop.set_default_executor(ThreadPoolExecutor(
+            max_workers=RENDER_THREADS, thread_name_prefix='view_render'))
         if len(self.frames) > 1:
             self._playback = asyncio.get_running_loop().create_task(self._play())
 

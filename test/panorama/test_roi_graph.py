@@ -69,8 +69,8 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
             header.stamp = seconds_to_stamp(now, Time)
             pub.publish(array_to_image_msg(image, 'bgr8', Image, header))
 
-    got = _feed_until(images, 2, feed)
-    assert len(got) >= 2, proc.output()
+    got = _feed_until(images, 4, feed)
+    assert len(got) >= 4, proc.output()
     msg = got[-1]
     assert (msg.width, msg.height, msg.encoding) == (320, 240, 'bgr8')
     assert msg.header.frame_id == 'panorama_roi_front'
@@ -100,7 +100,7 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     info = _feed_until(infos, 1, feed_steer, accept=steered)
     assert info, proc.output()
     images.clear()
-    got = _feed_until(images, 2, feed)
+    got = _feed_until(images, 4, feed)
     covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(-30, 0, 30))
     assert covered > 0.5 and psnr > 30.0, (covered, psnr)
     # a bad steer (fov 200 deg, NaN) is refused with the reason; the view keeps its pose
@@ -121,8 +121,8 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     result = graph.set_parameters('stitcher', {'roi_views': ['side:40,0,60']})
     assert result[0].successful, result[0].reason
     side = graph.collect(Image, 'roi/side/image', QOS)
-    got = _feed_until(side, 2, feed)
-    assert len(got) >= 2, proc.output()
+    got = _feed_until(side, 4, feed)
+    assert len(got) >= 4, proc.output()
     covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(40, 0, 60))
     assert covered > 0.3 and psnr > 30.0
     images.clear()
@@ -174,7 +174,7 @@ def test_live_views_in_a_browser_from_the_stitchers_frames(graph, tmp_path):
             header.stamp = seconds_to_stamp(now, Time)
             pub.publish(array_to_image_msg(image, 'bgr8', Image, header))
 
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 60
     while 'live views in a browser' not in proc.output() and time.monotonic() < deadline:
         time.sleep(0.1)
     assert f'127.0.0.1:{port}' in proc.output(), proc.output()
@@ -183,9 +183,9 @@ def test_live_views_in_a_browser_from_the_stitchers_frames(graph, tmp_path):
         async with aiohttp.ClientSession() as session:
             ws = await session.ws_connect(f'http://127.0.0.1:{port}/ws')
             await ws.send_str(json.dumps({'az': 20, 'el': 1, 'fov': 50}))
-            info = None
+            info, matching = None, 0
             loop = asyncio.get_running_loop()
-            end = loop.time() + 30
+            end = loop.time() + 60
             while loop.time() < end:
                 feed()
                 try:
@@ -196,7 +196,9 @@ def test_live_views_in_a_browser_from_the_stitchers_frames(graph, tmp_path):
                     info = json.loads(msg.data)
                 elif msg.type == aiohttp.WSMsgType.BINARY:
                     await ws.send_str(json.dumps({'ack': info['sent']}))
-                    if abs(info['az'] - 20) < 1e-6:
+                    # the first sets may miss a camera (black sector): a few frames on
+                    matching = matching + 1 if abs(info['az'] - 20) < 1e-6 else 0
+                    if matching >= 5:
                         await ws.close()
                         return cv2.imdecode(np.frombuffer(msg.data, np.uint8),
                                             cv2.IMREAD_COLOR)
