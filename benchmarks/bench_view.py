@@ -1,5 +1,5 @@
 """
-Benchmark of the levelled views (issue 24): one view frame against one cv2.remap, and views at 25 Hz.
+Benchmark of the levelled views (issue 24): a view frame against one cv2.remap; views at 25 Hz.
 
 5 cameras of 640x480 (the horizon study's rig at half size), views of 1280x720 with a
 60 deg horizontal field of view. First, one view frame against its floor, one bare
@@ -85,8 +85,8 @@ def main():
         view.set_attitude(0.03 * math.sin(k / 5), pitch + 0.02 * math.cos(k / 6))
         view.render(mosaic.image)
 
-    rows = [('cv2.remap, float map (the floor)', floor), ('cv2.remap, fixed-point map',
-                                                         floor_fixed),
+    rows = [('cv2.remap, float map (the floor)', floor),
+            ('cv2.remap, fixed-point map', floor_fixed),
             ('view, still (lookup reused)', time_frames(args.frames, still))]
     view.set_attitude(0.0, pitch)
     rows.append(('view moving every frame', time_frames(args.frames, moving)))

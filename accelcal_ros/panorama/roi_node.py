@@ -16,6 +16,8 @@ degrees; set it at run time to add, remove or point views):
   stamped with the frame set's stamp, frame_id ``<frame_id>_roi_<name>``) and
   ``roi/<name>/camera_info`` (sensor_msgs/CameraInfo: the virtual camera's ``K``,
   ``P = [K | 0]``, no distortion, same header), reliable depth 2;
+* with ``roi_serve_port`` set, serves the same live frame sets in a browser (the page of
+  ``accelcal serve``, :mod:`.serve`: one view per tab, not published as topics);
 * subscribes ``roi/<name>/steer`` (geometry_msgs/Vector3Stamped: ``x`` = azimuth,
   ``y`` = elevation, ``z`` = horizontal field of view, radians, the conventions of
   :mod:`.view`), for a head tracker or joystick; a bad value (NaN, fov outside
@@ -49,6 +51,7 @@ class RoiViews:
         self._stop = False
         self._warned = set()
         self._thread = None
+        self.server = None
         self.published = 0
         self.params = ParameterSet(node, ROI_PARAMS, on_change=self._on_change)
 
@@ -60,8 +63,27 @@ class RoiViews:
         self.views = ViewSet(rig, imu_to_camera, 1 if encoding == 'mono8' else 3,
                              v['roi_max_views'], v['roi_width'], v['roi_height'])
         self._apply(v['roi_views'])
+        self.server = self._browser_server(rig, imu_to_camera, v)
         self._thread = threading.Thread(target=self._loop, name='roi_views', daemon=True)
         self._thread.start()
+
+    def _browser_server(self, rig, imu_to_camera, v):
+        """Start the live browser server when ``roi_serve_port`` is set (else None)."""
+        if not v['roi_serve_port']:
+            return None
+        from accelcal_ros.panorama.serve import is_loopback, ViewServer
+
+        host, token = v['roi_serve_host'], v['roi_serve_token'] or None
+        if not is_loopback(host) and token is None:
+            raise InputError(f'roi_serve_host {host!r} is not a loopback address: set '
+                             'roi_serve_token, which every browser request must then carry')
+        tabs = ViewSet(rig, imu_to_camera, 3, v['roi_max_views'], v['roi_width'],
+                       v['roi_height'])
+        server = ViewServer(tabs, [], token=token, live=True)
+        server.start(host, v['roi_serve_port'])
+        self.node.get_logger().info(f'live views in a browser on {server.url}'
+                                    + ('?token=...' if token else ''))
+        return server
 
     # -- views ----------------------------------------------------------------------------
     def _on_change(self, name, value):
@@ -99,7 +121,7 @@ class RoiViews:
     # -- frames ---------------------------------------------------------------------------
     def submit(self, frame_set):
         """Hand the newest frame set to the render thread (an older pending one is dropped)."""
-        if not self._io:
+        if not self._io and self.server is None:
             return
         with self._cond:
             self._pending = frame_set
@@ -112,6 +134,8 @@ class RoiViews:
             self._cond.notify()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+        if self.server is not None:
+            self.server.stop()
 
     def _loop(self):
         while True:
@@ -130,6 +154,9 @@ class RoiViews:
                     self.node.get_logger().warning(f'views: {type(exc).__name__}: {exc}')
 
     def _render(self, frame_set):
+        if self.server is not None:
+            self.server.push_frame(frame_set.images, frame_set.roll_rad, frame_set.pitch_rad,
+                                   frame_set.stamp_s)
         wanted = [name for name, (pub, info, _) in list(self._io.items())
                   if pub.get_subscription_count() or info.get_subscription_count()]
         if not wanted:

@@ -33,6 +33,13 @@ ROI_PARAMS = [
               maximum=MAX_VIEW_SIDE_PX, unit='px', read_only=True),
     ParamSpec('roi_max_views', 8, 'most views at once (more are refused with the reason)',
               minimum=1, maximum=MAX_VIEWS_LIMIT, read_only=True),
+    ParamSpec('roi_serve_port', 0, 'serve the live views in a browser on this TCP port, one '
+              'view per tab (0: off; the page of accelcal serve)', minimum=0, maximum=65535,
+              read_only=True),
+    ParamSpec('roi_serve_host', '127.0.0.1', 'address the browser server listens on (any '
+              'address but loopback requires roi_serve_token)', read_only=True),
+    ParamSpec('roi_serve_token', '', 'token every browser request must carry (?token=...); '
+              'required when roi_serve_host is not a loopback address', read_only=True),
 ]
 """The views' parameters (declared by :class:`~.roi_node.RoiViews` on the stitcher)."""
 

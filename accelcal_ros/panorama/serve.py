@@ -12,7 +12,7 @@ row, covered fraction, frame number). The page acknowledges each frame once draw
 server sends the next one only then, so at most one frame is in flight and a drag is
 answered by the newest pose, not by a queue of old ones (why a WebSocket and not MJPEG:
 MJPEG over HTTP has no back channel, so the pose would need a second connection, and the
-browser's MJPEG decoder gives no acknowledgement to pace frames by; see docs/panorama.md
+browser's MJPEG decoder gives no acknowledgement to pace frames by; see docs/roi.md
 for the measured drag-to-image latency).
 
 Closing the tab (or losing the connection, even mid-frame) removes its view; more tabs
@@ -42,6 +42,8 @@ import numpy as np
 
 DEFAULT_POSE_DEG = (0.0, 0.0, 60.0)
 """Pose of a new tab and of the reset key: azimuth, elevation, fov_h (degrees)."""
+RENDER_THREADS = 4
+"""Threads that render and JPEG-encode the tabs' views (and copy in frame sets)."""
 FrameSet = Tuple[List[np.ndarray], float, float, float]
 """``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
 
@@ -61,13 +63,15 @@ class ViewServer:
     The web server over a :class:`~.view_set.ViewSet` and recorded frame sets.
 
     ``frames`` are played in a loop at ``fps`` (one frame set: a still scene, rendered
-    again only when a view moves). ``token`` (None: none required) must be carried by
-    every request.
+    again only when a view moves); with ``live=True`` there may be none, and frame sets
+    arrive through :meth:`push_frame` (the ``stitcher``'s, from any thread). ``token``
+    (None: none required) must be carried by every request.
     """
 
     def __init__(self, views: ViewSet, frames: Sequence[FrameSet], fps: float = 10.0,
-                 token: Optional[str] = None, jpeg_quality: int = 80) -> None:
-        if not frames:
+                 token: Optional[str] = None, jpeg_quality: int = 80,
+                 live: bool = False) -> None:
+        if not frames and not live:
             raise InputError('no frame set to serve')
         if not (math.isfinite(fps) and fps > 0):
             raise InputError(f'fps must be positive, got {fps!r}')
@@ -81,12 +85,35 @@ class ViewServer:
         self.served_frames = 0
         self._next_id = 0
         self._changed: Optional[asyncio.Condition] = None
+        self._playback: Optional['asyncio.Task[None]'] = None
         self._runner: Any = None
         self._thread: Optional[threading.Thread] = None
         self._loop: Optional[asyncio.AbstractEventLoop] = None
         self.url = ''
-        images, roll, pitch, stamp = self.frames[0]
-        views.set_frame(images, roll, pitch, stamp)
+        self.live = live
+        self._have_frame = bool(self.frames)
+        if self.frames:
+            images, roll, pitch, stamp = self.frames[0]
+            views.set_frame(images, roll, pitch, stamp)
+
+    def push_frame(self, images: Sequence[Any], roll: float, pitch: float,
+                   stamp_s: float) -> None:
+        """Show a new frame set in every tab (live mode; thread-safe, returns at once)."""
+        self.views.set_frame(images, roll, pitch, stamp_s)
+        loop = self._loop
+        if loop is not None and self._changed is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._new_frame)
+
+    def _new_frame(self) -> None:
+        self._have_frame = True
+        self.frame_number += 1
+        loop = asyncio.get_running_loop()
+        loop.create_task(self._notify())
+
+    async def _notify(self) -> None:
+        assert self._changed is not None
+        async with self._changed:
+            self._changed.notify_all()
 
     # -- the web application ------------------------------------------------------------
     def app(self) -> Any:
@@ -98,6 +125,7 @@ class ViewServer:
         app.router.add_get('/ws', self._socket)
         app.router.add_get('/status', self._status)
         app.on_startup.append(self._start_playback)
+        app.on_cleanup.append(self._stop_playback)
         return app
 
     def _authorised(self, request: Any) -> bool:
@@ -139,8 +167,23 @@ class ViewServer:
 
     async def _start_playback(self, app: Any) -> None:
         self._changed = asyncio.Condition()
+        self._loop = asyncio.get_running_loop()
+        # a bounded pool renders and encodes (OpenCV releases the GIL): threads stay flat
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._loop.set_default_executor(ThreadPoolExecutor(
+            max_workers=RENDER_THREADS, thread_name_prefix='view_render'))
         if len(self.frames) > 1:
-            app['playback'] = asyncio.get_running_loop().create_task(self._play())
+            self._playback = asyncio.get_running_loop().create_task(self._play())
+
+    async def _stop_playback(self, app: Any) -> None:
+        if self._playback is not None:
+            self._playback.cancel()
+            try:
+                await self._playback
+            except asyncio.CancelledError:
+                pass
+            self._playback = None
 
     async def _play(self) -> None:
         loop = asyncio.get_running_loop()
@@ -226,7 +269,7 @@ class ViewServer:
         while not ws.closed:
             async with self._changed:
                 await self._changed.wait_for(
-                    lambda: ws.closed or (state['acked'] and (
+                    lambda: ws.closed or (state['acked'] and self._have_frame and (
                         state['dirty'] or self.frame_number != seen_frame)))
             if ws.closed:
                 return

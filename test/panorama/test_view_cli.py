@@ -135,3 +135,29 @@ def test_study_roi_quick(capsys, tmp_path):
     roll, offset = closed_form_horizon(640, 360, ViewPose.from_degrees(90.0, 0.0, 60.0),
                                        (0.0, 0.2), (0.0, 0.2))
     assert abs(roll) < 1e-9 and abs(offset) < 1e-9
+
+
+@pytest.mark.parametrize('text', [
+    '', 't,azimuth,elevation,fov_h\n', 't,azimuth,elevation\n0,1,2\n',
+    't,azimuth,elevation,fov_h\n0,nan,0,60\n', 't,azimuth,elevation,fov_h\n0,x,0,60\n',
+    't,azimuth,elevation,fov_h\n1,0,0,60\n0,0,0,60\n', 't,azimuth,elevation,fov_h\n0,0,0,60\n1,0',
+    't,azimuth,elevation,fov_h\n0,1e308,0,60\n0.5,0,1e308,60\n', b'\xff\xfe\x00t,az\n'])
+def test_damaged_path_files_are_one_clear_error(tmp_path, text):
+    """A path CSV that is empty, short, non-numeric, unordered or out of range: AccelcalError."""
+    from accelcal_ros.errors import AccelcalError
+    from accelcal_ros.panorama.view_cli import ViewPath
+
+    path = tmp_path / 'path.csv'
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(AccelcalError):
+        ViewPath.load(str(path))
+
+
+def test_path_interpolates_and_unwraps_azimuth():
+    """179 -> -179 deg turns by 2 deg through 180, not by 358 deg through 0."""
+    from accelcal_ros.panorama.view_cli import ViewPath
+
+    path = ViewPath([0.0, 1.0], [179.0, -179.0], [0.0, 10.0], [60.0, 40.0])
+    assert path.at(0.5).degrees() == pytest.approx((-180.0, 5.0, 50.0))
+    assert path.at(-3).degrees() == pytest.approx((179.0, 0.0, 60.0))
+    assert path.at(9).degrees() == pytest.approx((-179.0, 10.0, 40.0))
