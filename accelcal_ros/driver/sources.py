@@ -16,7 +16,8 @@ import time
 from typing import Any, Callable, Dict, Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
-from accelcal_ros.driver.bus_timing import fifo_poll_period_s
+from accelcal_ros.driver.bus_timing import (fifo_poll_period_s, MAX_BUS_LOAD, SAMPLE_BYTES,
+                                            STATUS_READS_PER_POLL, transaction_s)
 from accelcal_ros.driver.selftest import run_self_test, SelfTestResult
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.driver.transport import open_spidev, SpiTransport
@@ -139,12 +140,18 @@ class Adxl345Source:
         self.poll_period = fifo_poll_period_s(self.rate_hz) if self.use_fifo else self.period
         self.stats = SourceStats()
         self.lost_samples = 0
+        self.overruns_host = 0
+        self.lost_host = 0
+        self.overruns_bus = 0
         self.sim_chip: Any = None
         self.rate_warning = ''
         self.lock = threading.Lock()
         self._stamper = FifoTimestamper(self.rate_hz)
         self._next_poll = 0.0   # set by start()
         self._last_read: Optional[float] = None
+        self._last_start = 0.0
+        self._last_count = 0
+        self._last_overrun_host: Optional[bool] = None
         self._backoff = 0.0
 
     @classmethod
@@ -174,7 +181,8 @@ class Adxl345Source:
             self.device.configure(self.rate_hz, self.range_g, self.use_fifo,
                                   watermark_interrupt=self.interrupt is not None)
             self._stamper.restart()
-            self._last_read = self.clock()   # the FIFO fills from now on
+            self._last_read = self._last_start = self.clock()   # the FIFO fills from now on
+            self._last_count = 0
             self._next_poll = self._last_read + self.period
 
     def next_poll_time(self) -> float:
@@ -213,9 +221,10 @@ class Adxl345Source:
         self.stats.consecutive_errors = 0
         t_read = self.clock()
         if overrun and self._last_read is not None:
-            expected = (t_read - self._last_read) * self.rate_hz
-            self.lost_samples += max(0, int(round(expected)) - len(samples))
-        self._last_read = t_read
+            self._last_overrun_host = self._attribute_loss(t_read, len(samples))
+        else:
+            self._last_overrun_host = None
+        self._last_read, self._last_start, self._last_count = t_read, now, len(samples)
         if self.use_fifo:
             t_last = t_read
             if edge is not None and len(samples) >= self.device.watermark:
@@ -230,9 +239,44 @@ class Adxl345Source:
             else max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)
 
+    def _attribute_loss(self, t_read, count):
+        """
+        Count the samples an overrun lost, and blame the host or the bus.
+
+        INT_SOURCE (read first in each drain) reports an overflow that happened since the
+        previous drain's INT_SOURCE read. From the previous drain's start to this one's
+        end, the two drains' reads (entries and status reads) took their wire time
+        (:mod:`bus_timing`). A bus
+        busy for at least ``MAX_BUS_LOAD`` of it was too slow for the rate (at 3200 Hz on
+        I2C at 100 kHz: 90 %); otherwise the host's own time (not scheduled, Python,
+        system calls) let the FIFO fill up (SPI at 5 MHz: 5 %).
+        """
+        lost = max(0, int(round((t_read - self._last_read) * self.rate_hz)) - count)
+        self.lost_samples += lost
+        wire = 0.0
+        if self.bus_speed_hz:
+            wire = ((self._last_count + count) * transaction_s(
+                self.bus, self.bus_speed_hz, SAMPLE_BYTES, pops_fifo=True)
+                + 2 * STATUS_READS_PER_POLL * transaction_s(self.bus, self.bus_speed_hz, 1))
+        host = wire < MAX_BUS_LOAD * (t_read - self._last_start)
+        if self._last_overrun_host is not None:
+            # the previous drain found the FIFO overflowing too (it overflows again between
+            # its INT_SOURCE read and its first pop): the same event, the same blame
+            host = self._last_overrun_host
+        elif host:
+            self.overruns_host += 1
+        else:
+            self.overruns_bus += 1
+        if host:
+            self.lost_host += lost
+        return host
+
     def diagnostic_values(self) -> Dict[str, str]:
         """Bus, clock and loss figures for ``/diagnostics``."""
         values = {'bus': self.bus, 'fifo_lost_samples_estimated': str(self.lost_samples),
+                  'fifo_overruns_host_stall': str(self.overruns_host),
+                  'fifo_lost_samples_host_stall': str(self.lost_host),
+                  'fifo_overruns_bus_too_slow': str(self.overruns_bus),
                   'reads': 'interrupt (INT1 watermark)' if self.interrupt is not None
                   else 'polling'}
         if self.bus_speed_hz:

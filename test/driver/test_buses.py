@@ -147,7 +147,8 @@ def test_unsustainable_rate_on_slow_i2c_overruns_and_the_loss_is_counted():
     """3200 Hz at 100 kHz: each read costs 831 us, the FIFO overflows; losses are counted."""
     clock = FakeClock()
     dev, chip = device('i2c', clock, 100e3)
-    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock)
+    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock,
+                           bus_speed_hz=100e3)
     source.start()
     read = 0
     t_end = clock.t + 1.0
@@ -158,6 +159,24 @@ def test_unsustainable_rate_on_slow_i2c_overruns_and_the_loss_is_counted():
     # the wire limits the achieved rate to about 1 / 831 us = 1200 Hz
     assert read < 1.0 / bus_timing.i2c_read_s(100e3, 6) * 1.01
     assert source.lost_samples == pytest.approx(chip.dropped, rel=0.2)
+    # one overrun event that never ends (every drain finds the FIFO overflowing): the bus's
+    assert source.overruns_bus == 1 and source.overruns_host == 0 and source.lost_host == 0
+
+
+def test_a_host_stall_is_told_apart_from_a_slow_bus():
+    """SPI at 5 MHz and 3200 Hz: a 50 ms stall of the host overruns; blamed on the host."""
+    clock = FakeClock()
+    dev, chip = device('spi', clock, 5e6)
+    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock, bus_speed_hz=5e6)
+    source.start()
+    stamps = []
+    for k in range(200):
+        clock.t = max(clock.t, source.next_poll_time()) + (0.05 if k == 100 else 0.0)
+        stamps.extend(source.poll().stamps)
+    assert np.all(np.diff(stamps) >= 0.5 / 3200.0)   # monotonic across the restart
+    assert source.stats.fifo_overruns == 1 and source.overruns_host == 1
+    assert source.overruns_bus == 0
+    assert source.lost_host == pytest.approx(chip.dropped, abs=2)
 
 
 def test_node_parameters_refuse_an_unsustainable_rate_or_run_it_when_asked():
