@@ -68,7 +68,7 @@ def _add_bus_arguments(parser, sim_bus_default='none'):
                         help='sim: none (sample level, simulated time) or the register-level '
                              'ADXL345 on i2c or spi, in real time with bus time charged')
     parser.add_argument('--bus-speed', type=float_in(0.0, 5e6), default=0.0,
-                        help='bus clock, Hz (0: Linux\'s, else 100 kHz I2C / 5 MHz SPI)')
+                        help="bus clock, Hz (0: Linux's, else 100 kHz I2C / 5 MHz SPI)")
     parser.add_argument('--spi-bus', type=nonnegative_int, default=0,
                         help='SPI bus B of /dev/spidevB.C')
     parser.add_argument('--spi-device', type=nonnegative_int, default=0,
@@ -76,7 +76,7 @@ def _add_bus_arguments(parser, sim_bus_default='none'):
 
 
 def _driver_values(args, **overrides):
-    """The imu_driver parameters for these options (one home: driver.params.make_source)."""
+    """Return the imu_driver parameters for these options (make_source builds from them)."""
     from accelcal_ros.driver.params import DRIVER_PARAMS
 
     values = {spec.name: spec.default for spec in DRIVER_PARAMS}

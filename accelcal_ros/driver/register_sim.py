@@ -76,6 +76,7 @@ class SimulatedAdxl345Bus:
         self._ahead_from = 0
         self._edge = threading.Condition()
         self._now = 0.0
+        self._watermark_at = 0.0
         self.transactions = 0
 
     # -- test controls -------------------------------------------------------------
@@ -118,6 +119,10 @@ class SimulatedAdxl345Bus:
         raw = self._encode(values[-reg.FIFO_DEPTH:])
         entries = [raw[k:k + 6] for k in range(0, len(raw), 6)]
         if self._stream():
+            first, before = due - len(values), len(self.fifo)
+            mark = self.registers[reg.FIFO_CTL] & 0x1F
+            if before < mark <= before + len(values):   # the sample that reached it
+                self._watermark_at = self._start + (first + mark - before) / self._rate()
             free = reg.FIFO_DEPTH - len(self.fifo)
             if len(values) > free:
                 self.overrun = True
@@ -204,6 +209,10 @@ class SimulatedAdxl345Bus:
         self._advance()
         return bool(self.registers[reg.INT_ENABLE] & reg.INT_SOURCE_WATERMARK) \
             and self._watermark()
+
+    def watermark_time(self) -> float:
+        """Return when (on the chip's clock) the FIFO last reached the watermark."""
+        return self._watermark_at
 
     def wait_int1(self, timeout_s: float) -> bool:
         """Block until INT1 is high or ``timeout_s`` passed (the simulated GPIO edge)."""

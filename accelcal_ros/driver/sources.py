@@ -140,6 +140,7 @@ class Adxl345Source:
         self.poll_period = fifo_poll_period_s(self.rate_hz) if self.use_fifo else self.period
         self.stats = SourceStats()
         self.lost_samples = 0
+        self.interrupt_timeouts = 0
         self.overruns_host = 0
         self.lost_host = 0
         self.overruns_bus = 0
@@ -191,7 +192,10 @@ class Adxl345Source:
 
     def _wait_edge(self):
         """Return the interrupt's edge time, or None (time-out: drain anyway, as polling)."""
-        return self.interrupt.wait_edge(max(4 * self.poll_period, 0.05))
+        edge = self.interrupt.wait_edge(max(4 * self.device.watermark * self.period, 0.05))
+        if edge is None:
+            self.interrupt_timeouts += 1
+        return edge
 
     def poll(self) -> 'Batch':
         """Read what is available; an I/O error gives an empty batch and a back-off."""
@@ -274,6 +278,7 @@ class Adxl345Source:
     def diagnostic_values(self) -> Dict[str, str]:
         """Bus, clock and loss figures for ``/diagnostics``."""
         values = {'bus': self.bus, 'fifo_lost_samples_estimated': str(self.lost_samples),
+                  'interrupt_timeouts': str(self.interrupt_timeouts),
                   'fifo_overruns_host_stall': str(self.overruns_host),
                   'fifo_lost_samples_host_stall': str(self.lost_host),
                   'fifo_overruns_bus_too_slow': str(self.overruns_bus),

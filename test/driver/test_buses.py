@@ -4,6 +4,8 @@ One ADXL345 class on two transports, bus time in the register-level simulation, 
 A fake clock advanced by the simulation's own ``sleep`` makes the bus time exact: what
 the driver achieves here is what its transactions cost on the wire.
 """
+import time
+
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.driver import bus_timing
 from accelcal_ros.driver.adxl345 import Adxl345
@@ -231,3 +233,59 @@ def test_self_test_passes_a_healthy_sensor_and_fails_a_broken_axis(bus, broken):
     assert result.passed is (broken == '')
     assert ('FAILED' in result.summary()) is bool(broken)
     assert not chip.registers[reg.DATA_FORMAT] & reg.DATA_FORMAT_SELF_TEST
+
+
+def run_real_time(reads, seconds=1.0, rate=800.0):
+    """Drain the register-level SPI simulation in real time; return (source, stamps)."""
+    values = {s.name: s.default for s in DRIVER_PARAMS}
+    values.update(backend='sim', rate_hz=rate, reads=reads,
+                  **{'sim.bus': 'spi', 'sim.poses_deg': [0.0, 0.0]})
+    source = make_source(values)
+    source.start()
+    end = time.time() + seconds
+    stamps = []
+    while time.time() < end:
+        time.sleep(max(0.0, source.next_poll_time() - time.time()))
+        stamps.extend(source.poll().stamps)
+    return source, np.array(stamps)
+
+
+def test_interrupt_reads_stamp_at_the_watermark_edge():
+    """INT1 (watermark 16): drains on the simulated edge; stamps on the sample grid."""
+    source, stamps = run_real_time('interrupt')
+    chip = source.sim_chip
+    assert chip.registers[reg.INT_ENABLE] == reg.INT_SOURCE_WATERMARK
+    assert chip.registers[reg.FIFO_CTL] & 0x1F == 16
+    if chip.dropped == 0:   # a loaded host may stall past the FIFO; then nothing to judge
+        assert len(stamps) >= chip.generated - 32
+        assert source.interrupt_timeouts == 0
+        # the edge carries the watermark sample's time: steps within 1 % of the period
+        assert np.max(np.abs(np.diff(stamps) * 800.0 - 1.0)) < 0.01
+
+
+def test_missing_gpio_chip_or_line_is_one_clear_line(monkeypatch):
+    """A GPIO chip that is absent, or a line beyond its lines: DeviceError naming them."""
+    from accelcal_ros.driver import gpio
+
+    with pytest.raises(DeviceError, match=r'GPIO chip /dev/gpiochip97 does not exist'):
+        gpio.GpiodInterrupt('gpiochip97', 4)
+
+    class Chip:   # a 54-line chip (Raspberry Pi) standing in for /dev/gpiochip0
+        def __init__(self, path):
+            self.path = path
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def get_info(self):
+            return type('Info', (), {'num_lines': 54})()
+
+    import gpiod
+    monkeypatch.setattr(gpiod, 'Chip', Chip)
+    monkeypatch.setattr(gpio.os.path, 'exists', lambda path: True)
+    with pytest.raises(DeviceError, match=r'GPIO line 99 does not exist on /dev/gpiochip0 '
+                                          r'\(it has lines 0\.\.53'):
+        gpio.GpiodInterrupt('gpiochip0', 99)
