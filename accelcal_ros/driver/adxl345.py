@@ -155,11 +155,14 @@ class Adxl345:
         a partly read batch is never published with made-up stamps.
         """
         overrun = self.overrun()
-        count = self.fifo_entries()
+        return self.read_entries(self.fifo_entries()), overrun
+
+    def read_entries(self, count: int) -> np.ndarray:
+        """Read ``count`` FIFO entries (``(count, 3)`` in g), one 6-byte transfer each."""
         read = self.transport.read_block
         raw = b''.join([bytes(read(reg.DATAX0, 6)) for _ in range(count)])
         counts = np.frombuffer(raw, dtype='<i2').reshape(count, 3)
-        return counts * FULL_RES_G_PER_LSB, overrun
+        return counts * FULL_RES_G_PER_LSB
 
 
 class FifoTimestamper:

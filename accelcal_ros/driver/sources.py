@@ -16,6 +16,7 @@ import time
 from typing import Any, Callable, Dict, Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
+from accelcal_ros.driver.adxl345_registers import FIFO_DEPTH
 from accelcal_ros.driver.bus_timing import (fifo_poll_period_s, MAX_BUS_LOAD, SAMPLE_BYTES,
                                             STATUS_READS_PER_POLL, transaction_s)
 from accelcal_ros.driver.selftest import run_self_test, SelfTestResult
@@ -150,7 +151,8 @@ class Adxl345Source:
         self._stamper = FifoTimestamper(self.rate_hz)
         self._next_poll = 0.0   # set by start()
         self._last_read: Optional[float] = None
-        self._last_start = 0.0
+        self._last_start = self._start_before = 0.0
+        self._count_before = 0
         self._last_count = 0
         self._last_overrun_host: Optional[bool] = None
         self._backoff = 0.0
@@ -183,7 +185,7 @@ class Adxl345Source:
                                   watermark_interrupt=self.interrupt is not None)
             self._stamper.restart()
             self._last_read = self._last_start = self.clock()   # the FIFO fills from now on
-            self._last_count = 0
+            self._start_before, self._last_count, self._count_before = self._last_start, 0, 0
             self._next_poll = self._last_read + self.period
 
     def next_poll_time(self) -> float:
@@ -206,13 +208,17 @@ class Adxl345Source:
     def _poll(self, edge):
         now = self.clock()
         try:
-            if self.use_fifo:
-                samples, overrun = self.device.read_fifo()
+            if self.use_fifo:   # as Adxl345.read_fifo, with the time of FIFO_STATUS
+                overrun = self.device.overrun()
+                count = self.device.fifo_entries()
+                t_status = self.clock()
+                samples = self.device.read_entries(count)
                 if overrun:
                     self.stats.fifo_overruns += 1
                     self._stamper.restart()  # samples were lost: restart the stamp chain
             else:
                 samples, overrun = self.device.read_sample()[None, :], False
+                t_status = now
         except OSError as exc:
             self.stats.io_errors += 1
             self.stats.consecutive_errors += 1
@@ -225,10 +231,11 @@ class Adxl345Source:
         self.stats.consecutive_errors = 0
         t_read = self.clock()
         if overrun and self._last_read is not None:
-            self._last_overrun_host = self._attribute_loss(t_read, len(samples))
+            self._last_overrun_host = self._attribute_loss(t_status, t_read, len(samples))
         else:
             self._last_overrun_host = None
-        self._last_read, self._last_start, self._last_count = t_read, now, len(samples)
+        self._start_before, self._count_before = self._last_start, self._last_count
+        self._last_read, self._last_start, self._last_count = t_read, t_status, len(samples)
         if self.use_fifo:
             t_last = t_read
             if edge is not None and len(samples) >= self.device.watermark:
@@ -243,26 +250,35 @@ class Adxl345Source:
             else max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)
 
-    def _attribute_loss(self, t_read, count):
+    def _attribute_loss(self, t_status, t_read, count):
         """
         Count the samples an overrun lost, and blame the host or the bus.
 
         INT_SOURCE (read first in each drain) reports an overflow that happened since the
-        previous drain's INT_SOURCE read. From the previous drain's start to this one's
-        end, the two drains' reads (entries and status reads) took their wire time
-        (:mod:`bus_timing`). A bus
-        busy for at least ``MAX_BUS_LOAD`` of it was too slow for the rate (at 3200 Hz on
-        I2C at 100 kHz: 90 %); otherwise the host's own time (not scheduled, Python,
-        system calls) let the FIFO fill up (SPI at 5 MHz: 5 %).
+        previous drain's status reads (or, when that drain found the FIFO full, since the
+        one before). Over that time the drains' reads (entries and status reads) took
+        their wire time (:mod:`bus_timing`). A bus busy for at least ``MAX_BUS_LOAD`` of it
+        was too slow for the rate (at 3200 Hz on I2C at 100 kHz: 90 %); otherwise the
+        host's own time (not scheduled, Python, system calls) let the FIFO fill up (SPI at
+        5 MHz: 5 %). Consecutive overrunning drains are one event with one blame.
         """
-        lost = max(0, int(round((t_read - self._last_read) * self.rate_hz)) - count)
+        # between the previous FIFO_STATUS read and this one, (t - t_prev) x rate samples
+        # arrived; the previous drain popped what was there then, so the FIFO should now
+        # hold all arrivals: what it lacks, the overflow dropped
+        lost = max(0, int(round((t_status - self._last_start) * self.rate_hz)) - count)
         self.lost_samples += lost
+        start, entries, drains = self._last_start, self._last_count + count, 2
+        if self._last_count >= FIFO_DEPTH - 1:
+            # the previous drain found the FIFO full: it overflowed after that drain's
+            # status reads, before its first pop; judge the time that filled it
+            start, entries, drains = self._start_before, entries + self._count_before, 3
         wire = 0.0
         if self.bus_speed_hz:
-            wire = ((self._last_count + count) * transaction_s(
-                self.bus, self.bus_speed_hz, SAMPLE_BYTES, pops_fifo=True)
-                + 2 * STATUS_READS_PER_POLL * transaction_s(self.bus, self.bus_speed_hz, 1))
-        host = wire < MAX_BUS_LOAD * (t_read - self._last_start)
+            wire = (entries * transaction_s(self.bus, self.bus_speed_hz, SAMPLE_BYTES,
+                                            pops_fifo=True)
+                    + drains * STATUS_READS_PER_POLL
+                    * transaction_s(self.bus, self.bus_speed_hz, 1))
+        host = wire < MAX_BUS_LOAD * (t_read - start)
         if self._last_overrun_host is not None:
             # the previous drain found the FIFO overflowing too (it overflows again between
             # its INT_SOURCE read and its first pop): the same event, the same blame

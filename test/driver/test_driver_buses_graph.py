@@ -92,7 +92,7 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
     dropped_by_fifo = delta('sim_fifo_dropped_samples')
     busy = (float(end['sim_bus_busy_s']) - float(start['sim_bus_busy_s'])) / window_s
     report = (f'{bus} {speed:g} Hz at {rate:g} Hz: published {published}, received '
-              f'{len(msgs)} (DDS lost {published - len(msgs)}), FIFO dropped '
+              f'{len(msgs)} (over the probe window), FIFO dropped '
               f'{dropped_by_fifo} (overruns: host stall {delta("fifo_overruns_host_stall")}, '
               f'bus too slow {delta("fifo_overruns_bus_too_slow")}), bus busy {100 * busy:.1f} %')
     print(report)
@@ -111,7 +111,9 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
     assert len(msgs) > 0.5 * published, report   # DDS, best effort, loaded machine
     stamps = np.sort([stamp(m) for m in msgs])
     steps = np.diff(stamps) * rate
-    assert np.median(steps) == pytest.approx(1.0, rel=2e-3)
+    # the period is the measured output data rate; where the host stalls often, the
+    # measuring window restarts at each overrun and the estimate is off by a few 0.1 %
+    assert np.median(steps) == pytest.approx(1.0, rel=1e-2)
     assert np.all(steps >= 0.49)
     # gaps are whole sample periods (a message DDS did not deliver), never a shifted grid
     # (except where an overrun restarted the stamp chain)
