@@ -120,6 +120,24 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
     assert np.percentile(np.abs(steps - np.round(steps)), 95) < 0.1
 
 
+def test_unsustainable_rate_runs_when_asked_and_reports_its_losses(graph):
+    """I2C at 100 kHz and 800 Hz with allow_unsustainable_rate: WARN, achieved rate, losses."""
+    diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
+    proc = graph.start('imu_driver', {'backend': 'sim', 'sim.bus': 'i2c', 'rate_hz': 800.0,
+                                      'bus_speed_hz': 100000.0, 'diagnostics_period_s': 0.5,
+                                      'allow_unsustainable_rate': True})
+    _, values = wait_values(diag, lambda v: int(v['fifo_overruns_bus_too_slow']) > 0
+                            and int(v['samples_published']) > 2000, 60.0)
+    assert 'running anyway' in proc.output() and 'only at >= 400 kHz' in proc.output()
+    msgs, _ = diag.snapshot()
+    status = [s for a in msgs for s in a.status if 'imu_driver' in s.name][-1]
+    assert status.level == status.WARN and 'unsustainable rate, achieved' in status.message
+    # the bus gives about 1 / (831 us + status reads): well below 800 Hz
+    assert float(values['rate_hz_achieved']) < 0.95 * 800.0
+    assert int(values['fifo_lost_samples_estimated']) > 0
+    assert int(values['sim_fifo_dropped_samples']) > 0
+
+
 def test_self_test_service_passes_a_healthy_and_fails_a_broken_sensor(graph):
     """``imu_driver/self_test``: per-axis change and verdict; the stream resumes after it."""
     imu = graph.collect(Imu, 'imu/data_raw')
