@@ -56,9 +56,10 @@ def test_i2c_at_100_khz_refuses_3200_hz_with_the_reason(graph):
     assert 'Traceback' not in out
 
 
-@pytest.mark.parametrize('bus, speed, rate', [('i2c', 400000.0, 800.0),
-                                              ('spi', 5000000.0, 3200.0)])
-def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
+@pytest.mark.parametrize('bus, speed, rate, reads', [('i2c', 400000.0, 800.0, 'polling'),
+                                                     ('spi', 5000000.0, 3200.0, 'polling'),
+                                                     ('spi', 5000000.0, 800.0, 'interrupt')])
+def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate, reads):
     """
     10 s at the full rate: the bus loses nothing; stamps evenly spaced.
 
@@ -74,7 +75,7 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
     imu = graph.collect(Imu, 'imu/data_raw', qos)
     diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
     graph.start('imu_driver', {'backend': 'sim', 'sim.bus': bus, 'bus_speed_hz': speed,
-                               'rate_hz': rate, 'diagnostics_period_s': 0.5,
+                               'rate_hz': rate, 'diagnostics_period_s': 0.5, 'reads': reads,
                                'sim.poses_deg': [0.0, 0.0]})
     imu.wait_for(int(rate), timeout=30.0)   # discovery done, streaming
     _, start = wait_values(diag, lambda v: int(v['samples_published']) > 2 * rate, 30.0)
@@ -97,6 +98,7 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate):
               f'bus too slow {delta("fifo_overruns_bus_too_slow")}), bus busy {100 * busy:.1f} %')
     print(report)
     assert end['bus'] == bus and float(end['bus_speed_hz']) == speed
+    assert end['reads'].startswith(reads)
     # the bus sustains the rate: no overrun blamed on it, the wire at most half busy
     assert delta('fifo_overruns_bus_too_slow') == 0, report
     assert busy < 0.5, report
