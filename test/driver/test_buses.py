@@ -9,7 +9,7 @@ import time
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.driver import bus_timing
 from accelcal_ros.driver.adxl345 import Adxl345
-from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
+from accelcal_ros.driver.params import bus_speed_hz, DRIVER_PARAMS, make_source
 from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus, SimulatedAdxl345Spi
 from accelcal_ros.driver.selftest import run_self_test, self_test_limits_lsb, self_test_scale
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
@@ -204,6 +204,18 @@ def test_linux_bus_speed_is_read_from_the_device_tree(tmp_path):
     assert linux_bus_speed_hz('i2c', 1, sysfs=str(tmp_path)) == 400000.0
     assert linux_bus_speed_hz('i2c', 2, sysfs=str(tmp_path)) is None
     assert linux_bus_speed_hz('spi', 0, 0, sysfs=str(tmp_path)) is None
+    values = {s.name: s.default for s in DRIVER_PARAMS}
+    values.update(backend='i2c', i2c_bus=1, bus_speed_hz=100e3)
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 400e3)   # the kernel's clock
+    values['i2c_bus'] = 2
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 100e3)   # the parameter
+    values['bus_speed_hz'] = 0.0
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 100e3)   # the default
+    spi = tmp_path / 'bus' / 'spi' / 'devices' / 'spi0.1' / 'of_node'
+    spi.mkdir(parents=True)
+    (spi / 'spi-max-frequency').write_bytes((2000000).to_bytes(4, 'big'))
+    values.update(backend='spi', spi_bus=0, spi_device=1)
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('spi', 2e6)   # capped by the tree
 
 
 def test_self_test_limits_follow_the_supply_voltage():
