@@ -155,11 +155,14 @@ class Adxl345:
         a partly read batch is never published with made-up stamps.
         """
         overrun = self.overrun()
-        count = self.fifo_entries()
-        samples = np.empty((count, 3))
-        for k in range(count):
-            samples[k] = self.read_sample()
-        return samples, overrun
+        return self.read_entries(self.fifo_entries()), overrun
+
+    def read_entries(self, count: int) -> np.ndarray:
+        """Read ``count`` FIFO entries (``(count, 3)`` in g), one 6-byte transfer each."""
+        read = self.transport.read_block
+        raw = b''.join([bytes(read(reg.DATAX0, 6)) for _ in range(count)])
+        counts = np.frombuffer(raw, dtype='<i2').reshape(count, 3)
+        return counts * FULL_RES_G_PER_LSB
 
 
 class FifoTimestamper:
@@ -179,7 +182,8 @@ class FifoTimestamper:
     error: the stamps follow the lower envelope of the read times). An offset beyond
     ``resync_s`` (or two periods; lost samples, a stall) restarts the chain at the host
     time. Stamps stay monotonic (at least half a period apart across batches).
-    :meth:`restart` forgets the chain and the rate window (call it after a FIFO overrun).
+    :meth:`restart` forgets the chain and the rate window (call it after a FIFO overrun);
+    the next stamps still follow the last one.
     """
 
     def __init__(self, rate_hz: float, window_s: float = 10.0, min_span_s: float = 2.0,
@@ -195,11 +199,14 @@ class FifoTimestamper:
         self.last: Optional[float] = None
         self.measured_rate_hz = float('nan')
         self.resyncs = 0
+        self._floor = -float('inf')   # stamps after a restart stay after the old chain
         self._reads: Deque[Tuple[float, int]] = deque()   # (t_read, cumulative samples)
         self._total = 0
 
     def restart(self) -> None:
-        """Forget the stamp chain and the rate window (samples were lost)."""
+        """Forget the stamp chain and the rate window (samples were lost); stay monotonic."""
+        if self.last is not None:
+            self._floor = self.last + 0.5 * self.period
         self.last = None
         self._reads.clear()
         self._total = 0
@@ -227,7 +234,7 @@ class FifoTimestamper:
         period = self.period
         host_first = t_read - (count - 1) * period
         if self.last is None:
-            first = host_first
+            first = max(host_first, self._floor)
         else:
             first = self.last + period
             offset = host_first - first

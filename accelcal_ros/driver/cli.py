@@ -1,11 +1,16 @@
 """
 ``accelcal record``: record raw samples to CSV (``t,ax,ay,az``; s, m/s^2) without ROS.
 
-From the simulated ADXL345 (default; same parameters as the node's sim backend) or a
-real one over I2C, e.g.::
+From the simulated ADXL345 (default; same parameters as the node's sim backend, in
+simulated time; ``--sim-bus i2c|spi``: the register-level simulation in real time, bus time
+charged) or a real one over I2C or SPI, e.g.::
 
     accelcal record -o rec.csv --duration 60 --dwell 3 --move 1
     accelcal record -o rec.csv --backend i2c --bus 1 --rate 100 --duration 120
+    accelcal record -o rec.csv --backend spi --spi-bus 0 --rate 3200 --duration 10
+
+The rate is checked against the bus as the node does (refused with the reason unless
+``--allow-unsustainable-rate``). ``accelcal selftest`` runs the ADXL345's self-test.
 """
 from typing import Any
 
@@ -15,11 +20,11 @@ from accelcal_ros.cli_args import angle_deg, float_in, int_in, nonnegative_int
 def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add the ``record`` subcommand."""
     parser = subparsers.add_parser(
-        'record', help='record raw accelerometer samples to CSV (sim or I2C)',
+        'record', help='record raw accelerometer samples to CSV (sim, I2C or SPI)',
         description=__doc__.strip().splitlines()[0])
     parser.add_argument('-o', '--output', help='CSV file to write (or --bag)')
     _add_bag_arguments(parser)
-    parser.add_argument('--backend', choices=('sim', 'i2c'), default='sim')
+    parser.add_argument('--backend', choices=('sim', 'i2c', 'spi'), default='sim')
     parser.add_argument('--duration', type=float_in(0.0, 86400.0, low_open=True), default=30.0,
                         help='seconds (default 30)')
     parser.add_argument('--rate', type=float_in(0.0, 3200.0, low_open=True), default=100.0,
@@ -35,7 +40,71 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     parser.add_argument('--move', type=float_in(0.0, 3600.0), default=1.0,
                         help='sim: move between poses, s')
     parser.add_argument('--seed', type=nonnegative_int, default=0, help='sim: random seed')
+    _add_bus_arguments(parser)
+    parser.add_argument('--allow-unsustainable-rate', action='store_true',
+                        help='record a rate the bus cannot sustain (losses are reported)')
     parser.set_defaults(handler=_record)
+
+    selftest = subparsers.add_parser(
+        'selftest', help="run the ADXL345's built-in self-test (pass/fail per axis)",
+        description='Run the ADXL345 self-test (datasheet: SELF_TEST bit, output change per '
+                    'axis within Table 15 x Table 14 for the supply voltage); exit status 1 '
+                    'when an axis fails. Sim: the register-level simulation (--sim-bus).')
+    selftest.add_argument('--backend', choices=('sim', 'i2c', 'spi'), default='sim')
+    selftest.add_argument('--bus', type=nonnegative_int, default=1, help='I2C bus number')
+    selftest.add_argument('--address', type=int_in(0, 0x7F), default=0x53,
+                          help='I2C address (0x53 or 0x1D)')
+    _add_bus_arguments(selftest, sim_bus_default='spi')
+    selftest.add_argument('--supply-voltage', type=float_in(2.0, 3.6), default=3.3,
+                          help='ADXL345 supply voltage VS, V (scales the limits; default 3.3)')
+    selftest.add_argument('--sim-broken-axes', default='', metavar='AXES',
+                          help='sim: axes (letters of xyz) whose self-test force is missing')
+    selftest.set_defaults(handler=_selftest)
+
+
+def _add_bus_arguments(parser, sim_bus_default='none'):
+    """Bus options shared by record and selftest (the node's parameters of the same names)."""
+    parser.add_argument('--sim-bus', choices=('none', 'i2c', 'spi'), default=sim_bus_default,
+                        help='sim: none (sample level, simulated time) or the register-level '
+                             'ADXL345 on i2c or spi, in real time with bus time charged')
+    parser.add_argument('--bus-speed', type=float_in(0.0, 5e6), default=0.0,
+                        help="bus clock, Hz (0: Linux's, else 100 kHz I2C / 5 MHz SPI)")
+    parser.add_argument('--spi-bus', type=nonnegative_int, default=0,
+                        help='SPI bus B of /dev/spidevB.C')
+    parser.add_argument('--spi-device', type=nonnegative_int, default=0,
+                        help='SPI chip select C of /dev/spidevB.C')
+
+
+def _driver_values(args, **overrides):
+    """Return the imu_driver parameters for these options (make_source builds from them)."""
+    from accelcal_ros.driver.params import DRIVER_PARAMS
+
+    values = {spec.name: spec.default for spec in DRIVER_PARAMS}
+    values.update({'backend': args.backend, 'i2c_bus': args.bus, 'i2c_address': args.address,
+                   'spi_bus': args.spi_bus, 'spi_device': args.spi_device,
+                   'bus_speed_hz': float(args.bus_speed), 'sim.bus': args.sim_bus})
+    values.update(overrides)
+    for spec in DRIVER_PARAMS:   # the node's checks, with the parameter's name in the line
+        _, reason = spec.check(values[spec.name])
+        if reason:
+            from accelcal_ros.errors import InputError
+            raise InputError(reason)
+    return values
+
+
+def _selftest(args):
+    from accelcal_ros.driver.params import make_source
+
+    values = _driver_values(args, **{'rate_hz': 100.0, 'sim.poses_deg': [0.0, 0.0],
+                                     'supply_voltage_v': float(args.supply_voltage),
+                                     'sim.self_test_broken_axes': args.sim_broken_axes})
+    if args.backend == 'sim' and args.sim_bus == 'none':
+        values['sim.bus'] = 'spi'   # the self-test needs the registers
+    source = make_source(values)
+    source.start()
+    result = source.self_test(args.supply_voltage)
+    print(result.summary())
+    return 0 if result.passed else 1
 
 
 def _record(args):
@@ -44,22 +113,28 @@ def _record(args):
     from accelcal_ros.sensor.recording import save_recording
     from accelcal_ros.sensor.units import g_to_mps2
     from accelcal_ros.driver.sim_sensor import poses_from_flat_list, SimulatedAdxl345
-    from accelcal_ros.driver.sources import I2cSource
     import numpy as np
 
     if args.duration <= 0:
         from accelcal_ros.errors import InputError
         raise InputError('--duration must be positive')
     start_s = _check_outputs(args)
-    if args.backend == 'sim':  # simulated time: no need to wait
+    if args.backend == 'sim' and args.sim_bus == 'none':  # simulated time: no need to wait
         sensor = SimulatedAdxl345(rate_hz=args.rate, range_g=args.range_g,
                                   poses_deg=poses_from_flat_list(args.poses_deg),
                                   dwell_s=args.dwell, move_s=args.move, seed=args.seed)
         t = np.arange(int(round(args.duration * args.rate))) / args.rate
         samples = sensor.read(t)
     else:
-        source = I2cSource.from_bus_number(args.bus, args.address, args.rate, args.range_g,
-                                           use_fifo=args.rate > 100.0)
+        from accelcal_ros.driver.params import make_source
+
+        values = _driver_values(args, **{
+            'rate_hz': float(args.rate), 'range_g': args.range_g, 'seed': args.seed,
+            'sim.poses_deg': [float(v) for v in args.poses_deg], 'sim.dwell_s': args.dwell,
+            'sim.move_s': args.move, 'allow_unsustainable_rate': args.allow_unsustainable_rate})
+        source = make_source(values)
+        if source.rate_warning:
+            print(f'warning: {source.rate_warning}')
         source.start()
         stamps, chunks = [], []
         end = time.time() + args.duration
@@ -71,9 +146,12 @@ def _record(args):
         t = np.concatenate(stamps)
         t = t - t[0] if t.size else t
         samples = np.concatenate(chunks)
-        if source.stats.io_errors:
-            print(f'warning: {source.stats.io_errors} I2C errors, '
-                  f'{source.stats.fifo_overruns} FIFO overruns during the recording')
+        stats = source.stats
+        if stats.io_errors or stats.fifo_overruns:
+            print(f'warning: {stats.io_errors} {source.bus.upper()} errors, '
+                  f'{stats.fifo_overruns} FIFO overruns ({source.lost_samples} samples lost, '
+                  f'{source.overruns_bus} overrun(s) because the bus was too slow) during '
+                  'the recording')
     if args.bag:
         return _write_bag(args, start_s + t, g_to_mps2(samples))
     save_recording(args.output, t, g_to_mps2(samples))

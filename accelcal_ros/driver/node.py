@@ -48,7 +48,7 @@ class ImuDriverNode(Node):
         self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
         self.truth_pub = (self.create_publisher(Vector3Stamped, 'sim/attitude_truth',
                                                 qos_profile_sensor_data)
-                          if backend == 'sim' else None)
+                          if backend == 'sim' and self.params['sim.bus'] == 'none' else None)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._imu = Imu()
         std = datasheet_noise_std_g(self.params['rate_hz']) * STANDARD_GRAVITY_M_S2

@@ -60,6 +60,15 @@ DRIVER_PARAMS = (
     ParamSpec('allow_unsustainable_rate', False, 'Run a rate_hz the bus cannot sustain '
               '(datasheet rule, bus time) instead of refusing; the achieved rate and the '
               'lost samples are then reported in /diagnostics.', read_only=True),
+    ParamSpec('reads', 'polling', 'How the FIFO is drained: polling (on a timer), or '
+              'interrupt (the FIFO watermark on INT1 through a GPIO line, libgpiod; stamps '
+              'at the edge; polling when no edge comes). sim: the simulated INT1 line.',
+              choices=('polling', 'interrupt'), read_only=True),
+    ParamSpec('int1_gpio_chip', 'gpiochip0', 'GPIO chip (/dev/<name>) INT1 is wired to '
+              '(reads interrupt).', validator=_non_empty, read_only=True),
+    ParamSpec('int1_gpio_line', 0, 'GPIO line offset on int1_gpio_chip INT1 is wired to '
+              '(e.g. the BCM number on a Raspberry Pi).', minimum=0, maximum=1023,
+              read_only=True),
     ParamSpec('supply_voltage_v', 3.3, 'ADXL345 supply voltage VS: scales the self-test '
               'limits (datasheet Table 14).', minimum=2.0, maximum=3.6, read_only=True,
               unit='V'),
@@ -170,6 +179,17 @@ def make_register_sim(values: Mapping[str, Any], sensor: SimulatedAdxl345, bus: 
                                self_test_scale=scale)
 
 
+def make_interrupt(values: Mapping[str, Any], sim_chip: Any = None) -> Any:
+    """Return INT1 as an interrupt for ``reads:=interrupt`` (None: polling)."""
+    from accelcal_ros.driver.gpio import GpiodInterrupt, SimulatedInterrupt
+
+    if values['reads'] != 'interrupt':
+        return None
+    if sim_chip is not None:
+        return SimulatedInterrupt(sim_chip)
+    return GpiodInterrupt(values['int1_gpio_chip'], values['int1_gpio_line'])
+
+
 def make_source(values: Mapping[str, Any], sysfs: str = '/sys'
                 ) -> Union['SimSource', 'ReplaySource', 'Adxl345Source']:
     """
@@ -198,7 +218,7 @@ def make_source(values: Mapping[str, Any], sysfs: str = '/sys'
         transport = (SpiTransport(chip, values['spi_bus'], values['spi_device']) if bus == 'spi'
                      else I2cTransport(chip, values['i2c_address'], values['i2c_bus']))
         source = Adxl345Source(Adxl345(transport), rate, values['range_g'], use_fifo(values),
-                               bus_speed_hz=speed)
+                               bus_speed_hz=speed, interrupt=make_interrupt(values, chip))
         source.sim_chip = chip
         source.rate_warning = warning
         return source
@@ -206,12 +226,14 @@ def make_source(values: Mapping[str, Any], sysfs: str = '/sys'
         if not values['replay.file']:
             raise InputError('backend replay needs replay.file (a CSV t,ax,ay,az)')
         return ReplaySource(values['replay.file'], values['replay.realtime'])
+    interrupt = make_interrupt(values)
     if backend == 'spi':
         source = Adxl345Source.from_spi(values['spi_bus'], values['spi_device'], speed, rate,
-                                        values['range_g'], use_fifo(values))
+                                        values['range_g'], use_fifo(values),
+                                        interrupt=interrupt)
     else:
         source = Adxl345Source.from_bus_number(values['i2c_bus'], values['i2c_address'],
                                                rate, values['range_g'], use_fifo(values),
-                                               bus_speed_hz=speed)
+                                               bus_speed_hz=speed, interrupt=interrupt)
     source.rate_warning = warning
     return source

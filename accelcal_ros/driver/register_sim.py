@@ -13,10 +13,11 @@ electrostatic self-test force shifts each axis by :attr:`self_test_shift_g` (a h
 sensor by default; set an axis to 0 for a broken one).
 
 Bus time: with ``bus_speed_hz`` every transaction costs its time on the wire
-(:mod:`~accelcal_ros.driver.bus_timing`): the bus is busy until the transaction ends, the
-chip sees it at its start, and the caller is held (``sleep``) until the wire time has
-passed, so the driver on the simulation achieves what it would on a real bus. Without
-it, transactions take no time (today's unit tests).
+(:mod:`~accelcal_ros.driver.bus_timing`): the bus is busy until the transaction ends,
+the chip never shows samples from after the caller's clock, and the caller is held
+(``sleep``, in steps of at most ``max_lag_s``) until the wire time has passed, so the
+driver on the simulation achieves what it would on a real bus. Without it, transactions
+take no time (today's unit tests).
 
 :meth:`fail_next` injects I/O errors (``OSError`` with ``EIO``), :attr:`devid` imitates
 another chip (0x00 or 0xFF: nothing on SPI). The watermark line (INT1) is modelled by
@@ -24,7 +25,6 @@ another chip (0x00 or 0xFF: nothing on SPI). The watermark line (INT1) is modell
 """
 from collections import deque
 import errno
-import struct
 import threading
 import time
 from typing import Any, Callable, Deque, List, Optional, Sequence
@@ -63,8 +63,8 @@ class SimulatedAdxl345Bus:
             * np.asarray(self_test_scale, dtype=float)
         self.registers = {reg.BW_RATE: 0x0A, reg.DATA_FORMAT: 0x00, reg.POWER_CTL: 0x00,
                           reg.FIFO_CTL: 0x00, reg.INT_ENABLE: 0x00, reg.INT_MAP: 0x00}
-        self.fifo: Deque[np.ndarray] = deque(maxlen=reg.FIFO_DEPTH)
-        self.latest = np.zeros(3)
+        self.fifo: Deque[bytes] = deque(maxlen=reg.FIFO_DEPTH)
+        self.latest = bytes(6)
         self.overrun = False
         self.generated = 0
         self.dropped = 0
@@ -76,6 +76,7 @@ class SimulatedAdxl345Bus:
         self._ahead_from = 0
         self._edge = threading.Condition()
         self._now = 0.0
+        self._watermark_at = 0.0
         self.transactions = 0
 
     # -- test controls -------------------------------------------------------------
@@ -115,25 +116,32 @@ class SimulatedAdxl345Bus:
         self.generated = due
         if self.registers[reg.DATA_FORMAT] & reg.DATA_FORMAT_SELF_TEST:
             values = values + self.self_test_shift_g
+        raw = self._encode(values[-reg.FIFO_DEPTH:])
+        entries = [raw[k:k + 6] for k in range(0, len(raw), 6)]
         if self._stream():
+            first, before = due - len(values), len(self.fifo)
+            mark = self.registers[reg.FIFO_CTL] & 0x1F
+            if before < mark <= before + len(values):   # the sample that reached it
+                self._watermark_at = self._start + (first + mark - before) / self._rate()
             free = reg.FIFO_DEPTH - len(self.fifo)
             if len(values) > free:
                 self.overrun = True
                 self.dropped += len(values) - free
-            self.fifo.extend(values[-reg.FIFO_DEPTH:])
-        self.latest = values[-1]
+            self.fifo.extend(entries)
+        self.latest = entries[-1]
         if self._watermark():
             with self._edge:
                 self._edge.notify_all()
 
-    def _encode(self, value):
+    def _encode(self, values):
+        """Return samples ``(N, 3)`` in g as the data registers hold them: ``N * 6`` bytes."""
         range_g = 2 ** ((self.registers[reg.DATA_FORMAT] & 0x03) + 1)
         lsb = FULL_RES_G_PER_LSB
         if not self.registers[reg.DATA_FORMAT] & reg.DATA_FORMAT_FULL_RES:
             lsb = FULL_RES_G_PER_LSB * range_g / 2.0  # 10-bit mode
         limit = int(round(range_g / lsb))
-        counts = np.clip(np.round(np.asarray(value) / lsb), -limit, limit - 1).astype(int)
-        return list(struct.pack('<3h', *counts))
+        counts = np.clip(np.round(np.asarray(values) / lsb), -limit, limit - 1)
+        return counts.astype('<i2').tobytes()
 
     def _watermark(self):
         return self._stream() and len(self.fifo) >= (self.registers[reg.FIFO_CTL] & 0x1F)
@@ -151,7 +159,10 @@ class SimulatedAdxl345Bus:
         lag = self._bus_free - now
         if lag > self.max_lag_s:
             self.sleep(lag)
-        return start
+            return self.clock()
+        # the caller returns before the wire time has all passed (it catches up at the
+        # next sleep): the chip must not show it samples from after its own clock
+        return now
 
     def _transaction(self, address, data_bytes=1, write=False, pops_fifo=False):
         self.transactions += 1
@@ -188,11 +199,9 @@ class SimulatedAdxl345Bus:
 
     def _read_data(self):
         """Return the 6 data bytes; with the FIFO in stream mode this pops one entry."""
-        if self._stream():
-            value = self.fifo.popleft() if self.fifo else self.latest
-        else:
-            value = self.latest
-        return self._encode(value)
+        if self._stream() and self.fifo:
+            return list(self.fifo.popleft())
+        return list(self.latest)
 
     # -- INT1 (watermark) -------------------------------------------------------------
     def int1_level(self) -> bool:
@@ -200,6 +209,10 @@ class SimulatedAdxl345Bus:
         self._advance()
         return bool(self.registers[reg.INT_ENABLE] & reg.INT_SOURCE_WATERMARK) \
             and self._watermark()
+
+    def watermark_time(self) -> float:
+        """Return when (on the chip's clock) the FIFO last reached the watermark."""
+        return self._watermark_at
 
     def wait_int1(self, timeout_s: float) -> bool:
         """Block until INT1 is high or ``timeout_s`` passed (the simulated GPIO edge)."""

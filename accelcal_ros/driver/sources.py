@@ -16,7 +16,9 @@ import time
 from typing import Any, Callable, Dict, Optional
 
 from accelcal_ros.driver.adxl345 import Adxl345, FifoTimestamper, open_smbus
-from accelcal_ros.driver.bus_timing import fifo_poll_period_s
+from accelcal_ros.driver.adxl345_registers import FIFO_DEPTH
+from accelcal_ros.driver.bus_timing import (fifo_poll_period_s, MAX_BUS_LOAD, SAMPLE_BYTES,
+                                            STATUS_READS_PER_POLL, transaction_s)
 from accelcal_ros.driver.selftest import run_self_test, SelfTestResult
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.driver.transport import open_spidev, SpiTransport
@@ -139,12 +141,20 @@ class Adxl345Source:
         self.poll_period = fifo_poll_period_s(self.rate_hz) if self.use_fifo else self.period
         self.stats = SourceStats()
         self.lost_samples = 0
+        self.interrupt_timeouts = 0
+        self.overruns_host = 0
+        self.lost_host = 0
+        self.overruns_bus = 0
         self.sim_chip: Any = None
         self.rate_warning = ''
         self.lock = threading.Lock()
         self._stamper = FifoTimestamper(self.rate_hz)
         self._next_poll = 0.0   # set by start()
         self._last_read: Optional[float] = None
+        self._last_start = self._start_before = 0.0
+        self._count_before = 0
+        self._last_count = 0
+        self._last_overrun_host: Optional[bool] = None
         self._backoff = 0.0
 
     @classmethod
@@ -174,7 +184,8 @@ class Adxl345Source:
             self.device.configure(self.rate_hz, self.range_g, self.use_fifo,
                                   watermark_interrupt=self.interrupt is not None)
             self._stamper.restart()
-            self._last_read = self.clock()   # the FIFO fills from now on
+            self._last_read = self._last_start = self.clock()   # the FIFO fills from now on
+            self._start_before, self._last_count, self._count_before = self._last_start, 0, 0
             self._next_poll = self._last_read + self.period
 
     def next_poll_time(self) -> float:
@@ -183,7 +194,10 @@ class Adxl345Source:
 
     def _wait_edge(self):
         """Return the interrupt's edge time, or None (time-out: drain anyway, as polling)."""
-        return self.interrupt.wait_edge(max(4 * self.poll_period, 0.05))
+        edge = self.interrupt.wait_edge(max(4 * self.device.watermark * self.period, 0.05))
+        if edge is None:
+            self.interrupt_timeouts += 1
+        return edge
 
     def poll(self) -> 'Batch':
         """Read what is available; an I/O error gives an empty batch and a back-off."""
@@ -194,13 +208,17 @@ class Adxl345Source:
     def _poll(self, edge):
         now = self.clock()
         try:
-            if self.use_fifo:
-                samples, overrun = self.device.read_fifo()
+            if self.use_fifo:   # as Adxl345.read_fifo, with the time of FIFO_STATUS
+                overrun = self.device.overrun()
+                count = self.device.fifo_entries()
+                t_status = self.clock()
+                samples = self.device.read_entries(count)
                 if overrun:
                     self.stats.fifo_overruns += 1
                     self._stamper.restart()  # samples were lost: restart the stamp chain
             else:
                 samples, overrun = self.device.read_sample()[None, :], False
+                t_status = now
         except OSError as exc:
             self.stats.io_errors += 1
             self.stats.consecutive_errors += 1
@@ -213,9 +231,11 @@ class Adxl345Source:
         self.stats.consecutive_errors = 0
         t_read = self.clock()
         if overrun and self._last_read is not None:
-            expected = (t_read - self._last_read) * self.rate_hz
-            self.lost_samples += max(0, int(round(expected)) - len(samples))
-        self._last_read = t_read
+            self._last_overrun_host = self._attribute_loss(t_status, t_read, len(samples))
+        else:
+            self._last_overrun_host = None
+        self._start_before, self._count_before = self._last_start, self._last_count
+        self._last_read, self._last_start, self._last_count = t_read, t_status, len(samples)
         if self.use_fifo:
             t_last = t_read
             if edge is not None and len(samples) >= self.device.watermark:
@@ -230,9 +250,54 @@ class Adxl345Source:
             else max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)
 
+    def _attribute_loss(self, t_status, t_read, count):
+        """
+        Count the samples an overrun lost, and blame the host or the bus.
+
+        INT_SOURCE (read first in each drain) reports an overflow that happened since the
+        previous drain's status reads (or, when that drain found the FIFO full, since the
+        one before). Over that time the drains' reads (entries and status reads) took
+        their wire time (:mod:`bus_timing`). A bus busy for at least ``MAX_BUS_LOAD`` of it
+        was too slow for the rate (at 3200 Hz on I2C at 100 kHz: 90 %); otherwise the
+        host's own time (not scheduled, Python, system calls) let the FIFO fill up (SPI at
+        5 MHz: 5 %). Consecutive overrunning drains are one event with one blame.
+        """
+        # between the previous FIFO_STATUS read and this one, (t - t_prev) x rate samples
+        # arrived; the previous drain popped what was there then, so the FIFO should now
+        # hold all arrivals: what it lacks, the overflow dropped
+        lost = max(0, int(round((t_status - self._last_start) * self.rate_hz)) - count)
+        self.lost_samples += lost
+        start, entries, drains = self._last_start, self._last_count + count, 2
+        if self._last_count >= FIFO_DEPTH - 1:
+            # the previous drain found the FIFO full: it overflowed after that drain's
+            # status reads, before its first pop; judge the time that filled it
+            start, entries, drains = self._start_before, entries + self._count_before, 3
+        wire = 0.0
+        if self.bus_speed_hz:
+            wire = (entries * transaction_s(self.bus, self.bus_speed_hz, SAMPLE_BYTES,
+                                            pops_fifo=True)
+                    + drains * STATUS_READS_PER_POLL
+                    * transaction_s(self.bus, self.bus_speed_hz, 1))
+        host = wire < MAX_BUS_LOAD * (t_read - start)
+        if self._last_overrun_host is not None:
+            # the previous drain found the FIFO overflowing too (it overflows again between
+            # its INT_SOURCE read and its first pop): the same event, the same blame
+            host = self._last_overrun_host
+        elif host:
+            self.overruns_host += 1
+        else:
+            self.overruns_bus += 1
+        if host:
+            self.lost_host += lost
+        return host
+
     def diagnostic_values(self) -> Dict[str, str]:
         """Bus, clock and loss figures for ``/diagnostics``."""
         values = {'bus': self.bus, 'fifo_lost_samples_estimated': str(self.lost_samples),
+                  'interrupt_timeouts': str(self.interrupt_timeouts),
+                  'fifo_overruns_host_stall': str(self.overruns_host),
+                  'fifo_lost_samples_host_stall': str(self.lost_host),
+                  'fifo_overruns_bus_too_slow': str(self.overruns_bus),
                   'reads': 'interrupt (INT1 watermark)' if self.interrupt is not None
                   else 'polling'}
         if self.bus_speed_hz:

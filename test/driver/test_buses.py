@@ -4,10 +4,12 @@ One ADXL345 class on two transports, bus time in the register-level simulation, 
 A fake clock advanced by the simulation's own ``sleep`` makes the bus time exact: what
 the driver achieves here is what its transactions cost on the wire.
 """
+import time
+
 from accelcal_ros.driver import adxl345_registers as reg
 from accelcal_ros.driver import bus_timing
 from accelcal_ros.driver.adxl345 import Adxl345
-from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
+from accelcal_ros.driver.params import bus_speed_hz, DRIVER_PARAMS, make_source
 from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus, SimulatedAdxl345Spi
 from accelcal_ros.driver.selftest import run_self_test, self_test_limits_lsb, self_test_scale
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
@@ -147,7 +149,8 @@ def test_unsustainable_rate_on_slow_i2c_overruns_and_the_loss_is_counted():
     """3200 Hz at 100 kHz: each read costs 831 us, the FIFO overflows; losses are counted."""
     clock = FakeClock()
     dev, chip = device('i2c', clock, 100e3)
-    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock)
+    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock,
+                           bus_speed_hz=100e3)
     source.start()
     read = 0
     t_end = clock.t + 1.0
@@ -158,6 +161,24 @@ def test_unsustainable_rate_on_slow_i2c_overruns_and_the_loss_is_counted():
     # the wire limits the achieved rate to about 1 / 831 us = 1200 Hz
     assert read < 1.0 / bus_timing.i2c_read_s(100e3, 6) * 1.01
     assert source.lost_samples == pytest.approx(chip.dropped, rel=0.2)
+    # one overrun event that never ends (every drain finds the FIFO overflowing): the bus's
+    assert source.overruns_bus == 1 and source.overruns_host == 0 and source.lost_host == 0
+
+
+def test_a_host_stall_is_told_apart_from_a_slow_bus():
+    """SPI at 5 MHz and 3200 Hz: a 50 ms stall of the host overruns; blamed on the host."""
+    clock = FakeClock()
+    dev, chip = device('spi', clock, 5e6)
+    source = Adxl345Source(dev, 3200.0, 16, use_fifo=True, clock=clock, bus_speed_hz=5e6)
+    source.start()
+    stamps = []
+    for k in range(200):
+        clock.t = max(clock.t, source.next_poll_time()) + (0.05 if k == 100 else 0.0)
+        stamps.extend(source.poll().stamps)
+    assert np.all(np.diff(stamps) >= 0.5 / 3200.0)   # monotonic across the restart
+    assert source.stats.fifo_overruns == 1 and source.overruns_host == 1
+    assert source.overruns_bus == 0
+    assert source.lost_host == pytest.approx(chip.dropped, abs=2)
 
 
 def test_node_parameters_refuse_an_unsustainable_rate_or_run_it_when_asked():
@@ -183,6 +204,18 @@ def test_linux_bus_speed_is_read_from_the_device_tree(tmp_path):
     assert linux_bus_speed_hz('i2c', 1, sysfs=str(tmp_path)) == 400000.0
     assert linux_bus_speed_hz('i2c', 2, sysfs=str(tmp_path)) is None
     assert linux_bus_speed_hz('spi', 0, 0, sysfs=str(tmp_path)) is None
+    values = {s.name: s.default for s in DRIVER_PARAMS}
+    values.update(backend='i2c', i2c_bus=1, bus_speed_hz=100e3)
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 400e3)   # the kernel's clock
+    values['i2c_bus'] = 2
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 100e3)   # the parameter
+    values['bus_speed_hz'] = 0.0
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('i2c', 100e3)   # the default
+    spi = tmp_path / 'bus' / 'spi' / 'devices' / 'spi0.1' / 'of_node'
+    spi.mkdir(parents=True)
+    (spi / 'spi-max-frequency').write_bytes((2000000).to_bytes(4, 'big'))
+    values.update(backend='spi', spi_bus=0, spi_device=1)
+    assert bus_speed_hz(values, sysfs=str(tmp_path)) == ('spi', 2e6)   # capped by the tree
 
 
 def test_self_test_limits_follow_the_supply_voltage():
@@ -212,3 +245,59 @@ def test_self_test_passes_a_healthy_sensor_and_fails_a_broken_axis(bus, broken):
     assert result.passed is (broken == '')
     assert ('FAILED' in result.summary()) is bool(broken)
     assert not chip.registers[reg.DATA_FORMAT] & reg.DATA_FORMAT_SELF_TEST
+
+
+def run_real_time(reads, seconds=1.0, rate=800.0):
+    """Drain the register-level SPI simulation in real time; return (source, stamps)."""
+    values = {s.name: s.default for s in DRIVER_PARAMS}
+    values.update(backend='sim', rate_hz=rate, reads=reads,
+                  **{'sim.bus': 'spi', 'sim.poses_deg': [0.0, 0.0]})
+    source = make_source(values)
+    source.start()
+    end = time.time() + seconds
+    stamps = []
+    while time.time() < end:
+        time.sleep(max(0.0, source.next_poll_time() - time.time()))
+        stamps.extend(source.poll().stamps)
+    return source, np.array(stamps)
+
+
+def test_interrupt_reads_stamp_at_the_watermark_edge():
+    """INT1 (watermark 16): drains on the simulated edge; stamps on the sample grid."""
+    source, stamps = run_real_time('interrupt')
+    chip = source.sim_chip
+    assert chip.registers[reg.INT_ENABLE] == reg.INT_SOURCE_WATERMARK
+    assert chip.registers[reg.FIFO_CTL] & 0x1F == 16
+    if chip.dropped == 0:   # a loaded host may stall past the FIFO; then nothing to judge
+        assert len(stamps) >= chip.generated - 32
+        assert source.interrupt_timeouts == 0
+        # the edge carries the watermark sample's time: steps within 1 % of the period
+        assert np.max(np.abs(np.diff(stamps) * 800.0 - 1.0)) < 0.01
+
+
+def test_missing_gpio_chip_or_line_is_one_clear_line(monkeypatch):
+    """A GPIO chip that is absent, or a line beyond its lines: DeviceError naming them."""
+    from accelcal_ros.driver import gpio
+
+    with pytest.raises(DeviceError, match=r'GPIO chip /dev/gpiochip97 does not exist'):
+        gpio.GpiodInterrupt('gpiochip97', 4)
+
+    class Chip:   # a 54-line chip (Raspberry Pi) standing in for /dev/gpiochip0
+        def __init__(self, path):
+            self.path = path
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def get_info(self):
+            return type('Info', (), {'num_lines': 54})()
+
+    import gpiod
+    monkeypatch.setattr(gpiod, 'Chip', Chip)
+    monkeypatch.setattr(gpio.os.path, 'exists', lambda path: True)
+    with pytest.raises(DeviceError, match=r'GPIO line 99 does not exist on /dev/gpiochip0 '
+                                          r'\(it has lines 0\.\.53'):
+        gpio.GpiodInterrupt('gpiochip0', 99)
