@@ -16,6 +16,7 @@ import threading
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.fileio import dump_yaml
 from accelcal_ros.rig.params import RIG_CALIBRATION_PARAMS as SPECS
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.images import image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -60,6 +61,7 @@ class RigCalibrationNode(Node):
         self._status = self.create_publisher(String, 'rig_calibration/status', 10)
         self.create_timer(p['status_period_s'], self._publish_status)
         self._warned = set()
+        self._drops = DropCounter(self)
 
     def _on_change(self, name, value):
         with self._lock:
@@ -77,7 +79,7 @@ class RigCalibrationNode(Node):
         try:
             grey = image_msg_to_array(msg, want='mono8', topic=f'{camera}/image_raw')
         except AccelcalError as exc:
-            self._warn_once(f'image_{camera}', f'unusable image ignored: {exc}')
+            self._drops.drop(f'{camera}_images', f'unusable image ignored: {exc}')
             return
         with self._lock:
             self._capture.add_image(camera, stamp_to_seconds(msg.header.stamp), grey)
@@ -86,7 +88,7 @@ class RigCalibrationNode(Node):
         a = msg.linear_acceleration
         accel = np.array([a.x, a.y, a.z])
         if not np.all(np.isfinite(accel)):
-            self._warn_once('imu_nan', 'IMU sample with NaN ignored')
+            self._drops.drop('imu_samples', 'IMU sample with NaN ignored')
             return
         with self._lock:
             name = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel)
