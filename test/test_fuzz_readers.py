@@ -2,13 +2,13 @@
 Bounded fuzz test of every file reader: a damaged file parses or raises an AccelcalError.
 
 Each reader (recording, calibration, rig, camera_info, boresight, pose and IMU CSV/YAML
-files, PCD ascii/binary/binary_compressed, PLY ascii/binary, IMU bags as mcap and ROS 1,
-a rosbag2 directory's metadata.yaml) gets a valid file written by the package's own writer
-(checked to load), then ``CASES`` mutations of it drawn with a fixed seed: bytes flipped, inserted or deleted,
-truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN / infinity / text /
-nothing, lines deleted, duplicated or swapped, header counts changed, an empty file. Any
-other exception, or a case running past ``CASE_LIMIT_S`` (a hang), fails the test, which
-prints how to reproduce each case.
+files, PCD ascii/binary/binary_compressed, PLY ascii/binary, IMU bags as mcap and ROS 1, a
+rosbag2 directory's metadata.yaml) gets a valid file written by the package's own writer
+(checked to load), then ``CASES`` mutations of it drawn with a fixed seed: bytes flipped,
+inserted or deleted, truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN /
+infinity / text / nothing, lines deleted, duplicated or swapped, header counts changed, an
+empty file. Any other exception, or a case running past ``CASE_LIMIT_S`` (a hang), fails the
+test, which prints how to reproduce each case.
 
 ``ACCELCAL_FUZZ_CASES=N`` runs N cases per reader (default 150) to hunt further; running
 this file as a script prints the time per reader.
