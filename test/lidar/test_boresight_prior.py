@@ -60,3 +60,16 @@ def test_a_contradicting_prior_with_several_data_candidates_is_refused(positions
     assert 'contradicts the data: it selects the assignment rpy [0.0, 44.0, 178.0]' in message
     assert 'ruled out because its floor would be 1.20-4.50 m' in message
     assert '2 assignments are left' in message and '\n' not in message
+
+
+@pytest.mark.parametrize('text', ['rpy_deg: [true, 0, 0]\n', 'rpy_deg: 1\n',
+                                  'R: [1, 0, 0, 0, 1, 0, 0, 0, true]\n',
+                                  'rpy_deg: [[1], 2, 3]\n'])
+def test_boresight_file_numbers_are_numbers(tmp_path, text):
+    """A bool or a nested list is not a number (issue 26: ``true`` read as 1.0)."""
+    from accelcal_ros.errors import FileFormatError
+
+    path = tmp_path / 'bs.yaml'
+    path.write_text(text)
+    with pytest.raises(FileFormatError, match='expected .* numbers'):
+        boresight.load_boresight(path)
