@@ -209,6 +209,12 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
         errors = pair_errors_deg(r, normals, gravity)
     check_constrained(gravity, names)
     warn = observability_warnings(gravity) + notes
+    off = rotation_angle_deg(r, prior)
+    if off >= 0.9 * search.max_tilt_deg:  # floors found at the edge of the search cone
+        warn.append(f'the result is {off:.1f} deg from the prior the floors were searched '
+                    f'around, near the search limit of {search.max_tilt_deg:g} deg: the prior '
+                    'is probably wrong and the floors found may be other planes; rerun with a '
+                    'closer prior or without one')
     cov, _ = rotation_covariance(r, normals, gravity, weights)
     rpy = np.degrees(rpy_radians_from_rotation(r))
     return BoresightResult(r, rpy, rpy_std_deg(r, cov), cov, names, normals, gravity,

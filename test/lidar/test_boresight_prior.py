@@ -73,3 +73,14 @@ def test_boresight_file_numbers_are_numbers(tmp_path, text):
     path.write_text(text)
     with pytest.raises(FileFormatError, match='expected .* numbers'):
         boresight.load_boresight(path)
+
+
+def test_a_result_at_the_edge_of_the_search_cone_is_said(positions, monkeypatch):
+    """When the data cannot check the prior, a result ~15 deg from it is warned about."""
+    monkeypatch.setattr(boresight, '_check_prior', lambda prior, *a: (prior, []))
+    res = calibrate_boresight(positions, _mount(0, 30, -2))
+    assert rotation_angle_deg(res.rotation, _mount(0, 30, -2)) > 13.5  # 14.2 deg here
+    assert any('14.2 deg from the prior' in w and 'near the search limit of 15 deg' in w
+               for w in res.warnings), res.warnings
+    res = calibrate_boresight(positions, _mount(0, 45, 0))
+    assert not any('search limit' in w for w in res.warnings)
