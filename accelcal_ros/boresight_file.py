@@ -63,10 +63,12 @@ def load_boresight(path: PathLike) -> np.ndarray:
 
 def _numbers(values: Any, count: int, name: str) -> np.ndarray:
     """Return ``count`` finite floats from a YAML list, else InputError naming ``name``."""
-    try:
-        arr = np.asarray(values, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f'{name}: expected {count} numbers, got {values!r:.80}') from None
+    from accelcal_ros.fileio import yaml_number
+
+    numbers = [yaml_number(v) for v in values] if isinstance(values, list) else [None]
+    if any(v is None for v in numbers):  # text, a bool (true is not 1.0), a nested list
+        raise InputError(f'{name}: expected {count} numbers, got {values!r:.80}')
+    arr = np.array(numbers, dtype=float)
     if arr.size != count:
         raise InputError(f'{name}: expected {count} numbers, got {arr.size}')
     if not np.all(np.isfinite(arr)):

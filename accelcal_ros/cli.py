@@ -119,15 +119,30 @@ def _sample_data(args: argparse.Namespace) -> int:
 
 
 def input_paths(args: argparse.Namespace) -> List[str]:
-    """Return the arguments of a parsed command that name existing files or directories."""
+    """
+    Return the arguments of a parsed command that name existing inputs (not outputs).
+
+    Files and non-empty directories (a bag, a data set): the command may write neither
+    over them nor inside them.
+    """
     paths = []
     for dest, value in vars(args).items():
         if is_output_dest(dest):
             continue
         for item in (value if isinstance(value, (list, tuple)) else [value]):
-            if isinstance(item, (str, os.PathLike)) and item and os.path.exists(item):
+            if isinstance(item, (str, os.PathLike)) and item and _holds_input(item):
                 paths.append(os.fspath(item))
     return paths
+
+
+def _holds_input(path: 'str | os.PathLike[str]') -> bool:
+    """Return whether ``path`` is a file or a non-empty directory (a bag, a data set)."""
+    if os.path.isdir(path):
+        try:
+            return bool(os.listdir(path))
+        except OSError:
+            return False
+    return os.path.exists(path)
 
 
 def output_paths(args: argparse.Namespace) -> List[str]:

@@ -118,9 +118,9 @@ def output_file_check(allow_empty: bool = False) -> Callable[[Any], Optional[str
 
     Refuses an empty value (unless ``allow_empty``: empty then means "no file"), an
     existing directory and anything that is not a regular file (``/dev/full``, a FIFO),
-    with :func:`accelcal_ros.fileio.output_path_problem`'s reason.
+    with :func:`accelcal_ros.filecheck.output_path_problem`'s reason.
     """
-    from accelcal_ros.fileio import output_path_problem
+    from accelcal_ros.filecheck import output_path_problem
 
     def check(value: Any) -> Optional[str]:
         if allow_empty and not str(value).strip():

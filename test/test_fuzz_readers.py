@@ -2,13 +2,13 @@
 Bounded fuzz test of every file reader: a damaged file parses or raises an AccelcalError.
 
 Each reader (recording, calibration, rig, camera_info, boresight, pose and IMU CSV/YAML
-files, PCD ascii/binary/binary_compressed, PLY ascii/binary, IMU bags as mcap and ROS 1)
-gets a valid file written by the package's own writer (checked to load), then
-``CASES`` mutations of it drawn with a fixed seed: bytes flipped, inserted or deleted,
-truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN / infinity / text /
-nothing, lines deleted, duplicated or swapped, header counts changed, an empty file. Any
-other exception, or a case running past ``CASE_LIMIT_S`` (a hang), fails the test, which
-prints how to reproduce each case.
+files, PCD ascii/binary/binary_compressed, PLY ascii/binary, IMU bags as mcap and ROS 1, a
+rosbag2 directory's metadata.yaml) gets a valid file written by the package's own writer
+(checked to load), then ``CASES`` mutations of it drawn with a fixed seed: bytes flipped,
+inserted or deleted, truncation, non-UTF-8 bytes, a number replaced by a huge one / NaN /
+infinity / text / nothing, lines deleted, duplicated or swapped, header counts changed, an
+empty file. Any other exception, or a case running past ``CASE_LIMIT_S`` (a hang), fails the
+test, which prints how to reproduce each case.
 
 ``ACCELCAL_FUZZ_CASES=N`` runs N cases per reader (default 150) to hunt further; running
 this file as a script prints the time per reader.
@@ -163,6 +163,23 @@ def _bag_writer(fmt):
     return write
 
 
+def _write_bag_metadata(path):
+    """Write a rosbag2 directory (mcap) whose metadata.yaml is the fuzzed file."""
+    import shutil
+
+    from accelcal_ros.recording.sim_bags import write_imu_bag
+
+    directory = os.path.dirname(path)
+    shutil.rmtree(directory, ignore_errors=True)
+    t = np.arange(20) * 0.01
+    write_imu_bag(directory, 'mcap', t, np.tile([0.0, 0.1, 9.8], (20, 1)))
+
+
+def _read_bag_directory(path):
+    """Read the IMU topic of the bag directory that holds ``path``."""
+    return _read_imu_bag(os.path.dirname(path))
+
+
 def _read_imu_bag(path):
     from accelcal_ros.recording.bag import BagReader
     from accelcal_ros.recording.streams import read_imu
@@ -219,6 +236,8 @@ READERS = {
     'ply_binary': ('b.ply', _ply_writer(True), _read_ply),
     'imu_bag_mcap': ('imu.mcap', _bag_writer('mcap'), _read_imu_bag),
     'imu_bag_ros1': ('imu.bag', _bag_writer('ros1'), _read_imu_bag),
+    'bag_metadata_yaml': (os.path.join('bag', 'metadata.yaml'), _write_bag_metadata,
+                          _read_bag_directory),
 }
 
 

@@ -15,7 +15,7 @@ import socket
 import stat
 import threading
 
-from accelcal_ros import fileio
+from accelcal_ros import filecheck, fileio
 from accelcal_ros.errors import AccelcalError, FileFormatError, FileWriteError, InputError
 import numpy as np
 import pytest
@@ -97,11 +97,9 @@ def test_fifo_swapped_in_after_the_check_does_not_block(tmp_path, monkeypatch):
     """The open uses O_NONBLOCK and fstat: a FIFO that replaces the file is refused."""
     fifo = tmp_path / 'x.yaml'
     os.mkfifo(fifo)
-    real_check = fileio.check_regular_file
-    monkeypatch.setattr(fileio, 'check_regular_file', lambda path, what='file': None)
+    monkeypatch.setattr(filecheck, 'check_regular_file', lambda path, what='file': None)
     with _time_limit(), pytest.raises(FileFormatError, match='FIFO'):
         fileio.read_input_bytes(fifo, 'calibration file')
-    monkeypatch.setattr(fileio, 'check_regular_file', real_check)
 
 
 def test_reads_are_bounded_by_the_size_limit_of_the_format(tmp_path, monkeypatch):
@@ -273,10 +271,10 @@ def test_bag_with_a_fifo_inside_is_refused(tmp_path):
 
 def test_output_path_problems_are_found_before_any_work(tmp_path):
     """The check the nodes' output_file parameters use (empty, directory, device)."""
-    assert fileio.output_path_problem(str(tmp_path / 'new.yaml')) is None
-    assert 'character device' in fileio.output_path_problem('/dev/full')
-    assert 'directory' in fileio.output_path_problem(str(tmp_path))
-    assert 'empty' in fileio.output_path_problem('')
+    assert filecheck.output_path_problem(str(tmp_path / 'new.yaml')) is None
+    assert 'character device' in filecheck.output_path_problem('/dev/full')
+    assert 'directory' in filecheck.output_path_problem(str(tmp_path))
+    assert 'empty' in filecheck.output_path_problem('')
     assert isinstance(AccelcalError(), Exception)
 
 

@@ -34,6 +34,8 @@ import numpy as np
 MAX_SIDE_PX = 100000
 MAX_FOCAL_PX = 1e6
 """Largest focal length (px) taken: 1e6 px is a 0.06 deg field of view on a 1000 px image."""
+MIN_FOCAL_PX = 1.0
+"""Smallest focal length (px) taken: below a pixel no lens images anything."""
 MAX_DISTORTION_COEFFICIENT = 1000.0
 """Largest ``|D_i|`` taken: real lenses (rational models included) stay far below; a
 larger value is a broken file that would fold the image."""
@@ -96,12 +98,14 @@ def _camera_matrix(k: Any, where: str) -> np.ndarray:
                          f'lengths fx, fy > 0, got {k.reshape(-1).tolist()} (an all-zero K: '
                          'the camera is not calibrated)')
     limit = MAX_FOCAL_PX
-    if not (np.all(np.isfinite(k)) and k[0, 0] <= limit and k[1, 1] <= limit
+    if not (np.all(np.isfinite(k)) and MIN_FOCAL_PX <= k[0, 0] <= limit
+            and MIN_FOCAL_PX <= k[1, 1] <= limit
             and abs(k[0, 1]) <= k[0, 0] and abs(k[0, 2]) <= 2 * MAX_SIDE_PX
             and abs(k[1, 2]) <= 2 * MAX_SIDE_PX):
         raise InputError(f'{where}K = {k.reshape(-1).tolist()} is not a camera: focal lengths '
-                         f'must be at most {limit:g} px, the skew at most fx and the principal '
-                         f'point within +-{2 * MAX_SIDE_PX} px (broken file or wrong units)')
+                         f'must be {MIN_FOCAL_PX:g}..{limit:g} px, the skew at most fx and the '
+                         f'principal point within +-{2 * MAX_SIDE_PX} px (broken file or wrong '
+                         'units)')
     return k
 
 

@@ -19,6 +19,7 @@ import time
 
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.lidar.params import CLOUD_ASSEMBLER_PARAMS as SPECS
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import array_to_pointcloud2, pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
@@ -52,6 +53,7 @@ class CloudAssemblerNode(Node):
         self._lock = threading.Lock()
         self._nav_frame = 'map'
         self._warned = set()
+        self._drops = DropCounter(self)
         self._pub = self.create_publisher(PointCloud2, 'points_georef', p['queue_depth'])
         reliability = (ReliabilityPolicy.RELIABLE if p['points_reliable']
                        else ReliabilityPolicy.BEST_EFFORT)
@@ -95,7 +97,7 @@ class CloudAssemblerNode(Node):
             with self._lock:
                 self._core.add_scan(stamp_to_seconds(msg.header.stamp), cloud, time.monotonic())
         except AccelcalError as exc:
-            self._warn_once('scan', f'scan dropped: {exc}')
+            self._drops.drop('scans', f'scan dropped: {exc}')
 
     def _on_timer(self):
         with self._lock:
@@ -103,7 +105,7 @@ class CloudAssemblerNode(Node):
             frame = self.params['frame_id'] or self._nav_frame
         for nav, stats in done:
             if stats is None:
-                self._warn_once('nopose', 'scan dropped: no odometry received yet')
+                self._drops.drop('scans', 'scan dropped: no odometry received yet')
                 continue
             if not len(nav):
                 continue

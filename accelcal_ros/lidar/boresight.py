@@ -24,22 +24,27 @@ roll/pitch/yaw standard deviations follow by linearisation. When all gravity dir
 refused (:class:`.wahba.UnconstrainedBoresightError`); a spread under ~10 deg warns.
 
 Without a prior the floor of each position is chosen by :mod:`.floor_assign`, which refuses
-(:class:`.floor_assign.AmbiguousFloorError`) when several plane assignments fit.
+(:class:`.floor_assign.AmbiguousFloorError`) when several plane assignments fit. A prior is
+checked against the same search: when it is farther than the floor search's cone
+(``max_tilt_deg``) from every assignment the data leave (e.g. a yaw 180 deg off that picks
+an assignment the floor height rules out), the data win when they leave one assignment
+(said in the warnings), else the calibration is refused with the reason.
 
 Validation as in paper B (Fig. 10): the angle between ``R n_i`` and ``f_i`` per position,
 and a hold-out: fit on the even positions and test on the odd ones, and vice versa.
 """
 from dataclasses import dataclass, field
 import os
-from typing import Any, Dict, List, Optional, Sequence, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from accelcal_ros.boresight_file import load_boresight  # noqa: F401 - its home is the ground floor
 from accelcal_ros.errors import CalibrationError, GeometryError, InputError
 from accelcal_ros.frames import rotation_matrix_from_list, rpy_radians_from_rotation
-from accelcal_ros.lidar.floor_assign import PlaneSet, select_floor
+from accelcal_ros.lidar.floor_assign import (FloorCandidate, judged_candidates, PlaneSet,
+                                             select_floor)
 from accelcal_ros.lidar.plane_fit import find_floor, find_planes, FloorSearch
 from accelcal_ros.lidar.wahba import (check_constrained, holdout, observability_warnings,
-                                      pair_errors_deg, rotation_covariance,
+                                      pair_errors_deg, rotation_angle_deg, rotation_covariance,
                                       rpy_std_deg, solve_wahba)
 from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
@@ -159,6 +164,11 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
                 dropped[pos.name] = ('no plane consistent with the rotation found at the '
                                      'other positions (floorless cloud?)')
         valid = [v for v, c in zip(valid, choice) if c >= 0]
+    else:
+        prior = rotation_matrix_from_list(np.asarray(prior, dtype=float).reshape(-1), 'prior')
+        prior, prior_notes = _check_prior(prior, valid, search, tolerance_deg,
+                                          height_margin_m)
+        notes += prior_notes
     prior = rotation_matrix_from_list(np.asarray(prior, dtype=float).reshape(-1), 'prior')
     names: List[str] = []
     normal_list: List[np.ndarray] = []
@@ -200,11 +210,67 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
         errors = pair_errors_deg(r, normals, gravity)
     check_constrained(gravity, names)
     warn = observability_warnings(gravity) + notes
+    off = rotation_angle_deg(r, prior)
+    if off >= 0.9 * search.max_tilt_deg:  # floors found at the edge of the search cone
+        warn.append(f'the result is {off:.1f} deg from the prior the floors were searched '
+                    f'around, near the search limit of {search.max_tilt_deg:g} deg: the prior '
+                    'is probably wrong and the floors found may be other planes; rerun with a '
+                    'closer prior or without one')
     cov, _ = rotation_covariance(r, normals, gravity, weights)
     rpy = np.degrees(rpy_radians_from_rotation(r))
     return BoresightResult(r, rpy, rpy_std_deg(r, cov), cov, names, normals, gravity,
                            weights, errors, holdout(normals, gravity, weights), dropped,
                            warn, inliers)
+
+
+def _rpy_text(rotation: np.ndarray) -> str:
+    r, p, y = np.degrees(rpy_radians_from_rotation(rotation))
+    return f'[{r:.1f}, {p:.1f}, {y:.1f}] deg'
+
+
+def _check_prior(prior: np.ndarray, valid: Sequence[Any], search: FloorSearch,
+                 tolerance_deg: float, height_margin_m: float) -> Tuple[np.ndarray, List[str]]:
+    """
+    Return ``(rotation to search the floors with, notes)``: the prior unless data refute it.
+
+    The floor assignments the data allow without a prior (:func:`judged_candidates`: the
+    floor height and ceiling size cues applied) are compared with the prior. A prior
+    within ``search.max_tilt_deg`` (the floor search's cone) of one that is left is
+    consistent. Otherwise the prior contradicts the data: when the data leave exactly one
+    assignment the data win (its rotation is used, said in the notes); when they leave
+    several, :class:`CalibrationError` gives the reason and the candidates. When the data
+    alone cannot tell (gravity directions too alike, no planes) the prior decides.
+    """
+    gravity = [p.gravity_m_s2 for p, _ in valid]
+    try:
+        check_constrained(gravity, [p.name for p, _ in valid])
+        planes = [PlaneSet.from_planes(find_planes(pts, search))
+                  for _, pts in track(valid, 'boresight: checking the prior')]
+        cands = judged_candidates(planes, gravity, tolerance_deg, height_margin_m)
+    except (CalibrationError, GeometryError):  # the data alone cannot tell: the prior decides
+        return prior, []
+    left = [c for c in cands if not c.ruled_out]
+    agree = search.max_tilt_deg
+
+    def off(c: FloorCandidate) -> float:
+        return rotation_angle_deg(c.rotation, prior)
+
+    if not left or min(off(c) for c in left) <= agree:
+        return prior, []
+    ruled = sorted((c for c in cands if c.ruled_out and off(c) <= agree), key=off)
+    why = (f'it selects the assignment {ruled[0].describe()}, ruled out because '
+           f'{ruled[0].ruled_out}' if ruled else
+           f'no assignment of floor/walls/ceiling within {agree:g} deg of it fits the data')
+    said = f'the prior (nominal mounting) rpy {_rpy_text(prior)} contradicts the data: {why}'
+    if len(left) == 1:
+        data = left[0]
+        return data.rotation, [f'{said}; the data win: the floor assignment found without '
+                               f'the prior, rpy {_rpy_text(data.rotation)} '
+                               f'({off(data):.1f} deg from the prior), is used']
+    listed = '; '.join(f'{k + 1}: {c.describe()}' for k, c in enumerate(left[:6]))
+    raise CalibrationError(f'{said}; without the prior {len(left)} assignments are left '
+                           f'({listed}): give a prior within {agree:g} deg of the true '
+                           'mounting')
 
 
 def calibration_fit_warnings(positions: Sequence[StaticPosition],

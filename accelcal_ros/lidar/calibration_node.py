@@ -25,6 +25,7 @@ from accelcal_ros.errors import AccelcalError, CalibrationError
 from accelcal_ros.lidar.capture import CaptureSettings, StaticCapture
 from accelcal_ros.lidar.params import capture_settings, LIDAR_CALIBRATION_PARAMS as SPECS
 from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
@@ -56,6 +57,7 @@ class LidarCalibrationNode(Node):
         self._was_still = False
         self._n_logged = 0
         self._warned = set()
+        self._drops = DropCounter(self)
         imu_qos = QoSProfile(depth=self.params['imu_queue_depth'],
                              reliability=ReliabilityPolicy.BEST_EFFORT,
                              history=HistoryPolicy.KEEP_LAST)
@@ -99,7 +101,7 @@ class LidarCalibrationNode(Node):
             w = msg.angular_velocity
             gyro = np.array([w.x, w.y, w.z])
         if not (np.all(np.isfinite(accel)) and (gyro is None or np.all(np.isfinite(gyro)))):
-            self._warn_once('imu_nan', 'IMU sample with NaN ignored')
+            self._drops.drop('imu_samples', 'IMU sample with NaN ignored')
             return
         with self._lock:
             if self._capture is None:
@@ -123,7 +125,7 @@ class LidarCalibrationNode(Node):
             cloud = pointcloud2_to_array(msg)
             pts = np.stack([cloud['x'], cloud['y'], cloud['z']], axis=1).astype(float)
         except (AccelcalError, ValueError) as exc:
-            self._warn_once('cloud', f'unusable PointCloud2 ignored: {exc}')
+            self._drops.drop('clouds', f'unusable PointCloud2 ignored: {exc}')
             return
         with self._lock:
             if self._capture is None:

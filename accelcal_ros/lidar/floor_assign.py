@@ -243,15 +243,15 @@ def _smaller_floor_at(cand, planes, f, tol_deg, size_ratio):
     return out
 
 
-def select_floor(planes: Sequence[PlaneSet], gravity: ArrayLike, tolerance_deg: float = 3.0,
-                 height_margin_m: float = 0.1, size_ratio: float = 2.0,
-                 max_tilt_deg: float = 15.0) -> Tuple[np.ndarray, np.ndarray, List[str]]:
+def judged_candidates(planes: Sequence[PlaneSet], gravity: ArrayLike,
+                      tolerance_deg: float = 3.0, height_margin_m: float = 0.1,
+                      size_ratio: float = 2.0) -> List[FloorCandidate]:
     """
-    Return ``(R, choice, notes)``: the one assignment the cues leave, or raise.
+    Return every fitting assignment (:func:`floor_candidates`) with the physical cues applied.
 
-    ``notes`` say which other assignments fitted and what ruled them out. Raises
-    :class:`AmbiguousFloorError` (listing the candidates and the prior that decides) when
-    more than one is left.
+    A candidate that the floor height or the ceiling size rules out has ``ruled_out`` set
+    to the reason; the others are what the data alone leaves. Used by
+    :func:`select_floor` and to check a prior against the data.
     """
     f = _unit(np.asarray(gravity, dtype=float).reshape(-1, 3))
     cands = floor_candidates(planes, f, tolerance_deg)
@@ -273,6 +273,20 @@ def select_floor(planes: Sequence[PlaneSet], gravity: ArrayLike, tolerance_deg: 
                 c.ruled_out = (f'its ceiling would hold {size_ratio:g}+ times the points of '
                                f'its floor at {len(c.smaller_floor_at)} positions (a ceiling '
                                f'is usually cropped or smaller)')
+    return cands
+
+
+def select_floor(planes: Sequence[PlaneSet], gravity: ArrayLike, tolerance_deg: float = 3.0,
+                 height_margin_m: float = 0.1, size_ratio: float = 2.0,
+                 max_tilt_deg: float = 15.0) -> Tuple[np.ndarray, np.ndarray, List[str]]:
+    """
+    Return ``(R, choice, notes)``: the one assignment the cues leave, or raise.
+
+    ``notes`` say which other assignments fitted and what ruled them out. Raises
+    :class:`AmbiguousFloorError` (listing the candidates and the prior that decides) when
+    more than one is left.
+    """
+    cands = judged_candidates(planes, gravity, tolerance_deg, height_margin_m, size_ratio)
     left = [c for c in cands if not c.ruled_out]
     if len(left) > 1:
         gap = min(rotation_angle_deg(a.rotation, b.rotation)

@@ -23,7 +23,8 @@ import struct
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type
 
 from accelcal_ros.errors import AccelcalError, FileFormatError, InputError
-from accelcal_ros.fileio import check_regular_file, record_input, SIZE_LIMITS
+from accelcal_ros.filecheck import check_regular_file
+from accelcal_ros.fileio import load_yaml_mapping, record_input
 from accelcal_ros.recording.progress import Progress
 
 BAG_SUFFIXES = ('.bag', '.mcap', '.db3')
@@ -41,7 +42,8 @@ def damage_errors() -> Tuple[Type[BaseException], ...]:
     (``ValueError``, ``OverflowError``), a missing index entry (``KeyError``,
     ``IndexError``), a failed internal check (``AssertionError``), bad text
     (``UnicodeDecodeError``), I/O errors, a damaged size field read as gigabytes
-    (``MemoryError``).
+    (``MemoryError``), a value of the wrong type in the metadata (``TypeError``: text
+    where rosbags adds numbers; :func:`_check_metadata` refuses the known fields first).
     """
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError, WriterError as Ros1WriterError
@@ -52,7 +54,7 @@ def damage_errors() -> Tuple[Type[BaseException], ...]:
     errors: List[Type[BaseException]] = [
         AnyReaderError, Ros1ReaderError, Ros1WriterError, Ros2ReaderError, Ros2WriterError,
         SerdeError, TypesysError, OSError, EOFError, ValueError, ArithmeticError, LookupError,
-        AssertionError, RuntimeError, MemoryError, struct.error, sqlite3.Error]
+        AssertionError, RuntimeError, MemoryError, TypeError, struct.error, sqlite3.Error]
     for module, name in (('apsw', 'Error'), ('backports.zstd', 'ZstdError'),
                          ('compression.zstd', 'ZstdError')):
         try:
@@ -142,10 +144,47 @@ def _check_bag_directory(path: Path) -> None:
     except OSError as exc:
         raise FileFormatError(path, f'cannot list the bag directory: {exc.strerror}') from None
     for entry in entries:
-        info = check_regular_file(entry, 'file of the bag')
-        if entry.name == 'metadata.yaml' and info.st_size > SIZE_LIMITS['yaml']:
-            raise FileFormatError(entry, f'larger than the {SIZE_LIMITS["yaml"] // 2**20} MiB '
-                                  "a bag's metadata.yaml may have; not a rosbag2 metadata file")
+        check_regular_file(entry, 'file of the bag')
+        if entry.name == 'metadata.yaml':
+            _check_metadata(entry)
+
+
+#: metadata.yaml keys whose values rosbags computes with: integers (ns, counts, version)
+_METADATA_INTEGERS = ('nanoseconds', 'nanoseconds_since_epoch', 'message_count', 'version')
+
+
+def _check_metadata(path: Path) -> None:
+    """
+    Check a rosbag2 ``metadata.yaml`` before rosbags reads it (FileFormatError naming it).
+
+    A YAML mapping (at most ``SIZE_LIMITS['yaml']`` bytes) under
+    ``rosbag2_bagfile_information`` whose times, counts and version are integers
+    (:data:`_METADATA_INTEGERS`: ``1.5`` or text in a nanoseconds field is refused, not
+    rounded or raised from inside rosbags) and whose file names are text.
+    """
+    data = load_yaml_mapping(path, 'bag metadata file')
+    info = data.get('rosbag2_bagfile_information')
+    if not isinstance(info, dict):
+        raise FileFormatError(path, 'not a rosbag2 metadata file (no '
+                              'rosbag2_bagfile_information mapping); restore it with `ros2 bag '
+                              'reindex`')
+    stack: List[Tuple[str, Any]] = [('rosbag2_bagfile_information', info)]
+    while stack:
+        where, item = stack.pop()
+        if isinstance(item, dict):
+            for key, value in item.items():
+                if key in _METADATA_INTEGERS and (isinstance(value, bool)
+                                                  or not isinstance(value, int)):
+                    raise FileFormatError(path, f'{where}.{key} must be an integer, got '
+                                          f'{value!r} (damaged metadata: `ros2 bag reindex` '
+                                          'rewrites it)')
+                stack.append((f'{where}.{key}', value))
+        elif isinstance(item, list):
+            stack.extend((f'{where}[{k}]', v) for k, v in enumerate(item))
+    paths = info.get('relative_file_paths', [])
+    if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
+        raise FileFormatError(path, f'relative_file_paths must be a list of file names, got '
+                              f'{paths!r}')
 
 
 def _reason(exc: BaseException) -> str:

@@ -27,6 +27,7 @@ from accelcal_ros.errors import AccelcalError, CalibrationError, FileWriteError,
 from accelcal_ros.rig.calibrate import MIN_VIEWS_PER_CAMERA
 from accelcal_ros.rig.params import reference_problem, RIG_CALIBRATION_PARAMS as SPECS
 from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.images import image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -79,6 +80,7 @@ class RigCalibrationNode(Node):
                                'the board in view in a dozen poses, then call '
                                'rig_calibration/finish')
         self._tf = StaticBroadcaster(self)
+        self._drops = DropCounter(self)
 
     def _on_change(self, name, value):
         if name == 'reference':
@@ -104,7 +106,7 @@ class RigCalibrationNode(Node):
         try:
             grey = image_msg_to_array(msg, want='mono8', topic=f'{camera}/image_raw')
         except AccelcalError as exc:
-            self._warn_once(f'image_{camera}', f'unusable image ignored: {exc}')
+            self._drops.drop(f'{camera}_images', f'unusable image ignored: {exc}')
             return
         with self._lock:
             if self._capture is not None:
@@ -114,7 +116,7 @@ class RigCalibrationNode(Node):
         a = msg.linear_acceleration
         accel = np.array([a.x, a.y, a.z])
         if not np.all(np.isfinite(accel)):
-            self._warn_once('imu_nan', 'IMU sample with NaN ignored')
+            self._drops.drop('imu_samples', 'IMU sample with NaN ignored')
             return
         with self._lock:
             if self._capture is None:

@@ -29,6 +29,8 @@ def _with(camera, key, value):
     (_with(0, 'K', [1e300, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]), 'is not a camera'),
     (_with(0, 'K', [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1e-320]),
      'is not a camera|K must be'),
+    (_with(0, 'K', [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1e308]),
+     'is not a camera'),  # fuzz: fx = 5e-306 px after K /= K[2, 2]
     (_with(1, 'D', [True, 0, 0, 0, 0]), 'D must contain numbers only'),
     (_with(1, 'R', [True if v == 1.0 else v for v in YAW]), 'R must contain numbers only'),
     (_with(0, 'width', True), 'width must be an integer'),
