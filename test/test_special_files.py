@@ -261,6 +261,10 @@ def test_calibrate_onto_a_device_leaves_it_a_device(tmp_path, capsys, monkeypatc
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and len(err) == 1 and 'character device' in err[0], err
     assert _device('/dev/full') == before
+    # refused before any work: a calibration that would fail later is not even tried
+    assert main(['calibrate', 'rec.csv', '-o', '/dev/null']) == 1
+    err = capsys.readouterr()
+    assert 'output /dev/null is a character device' in err.err and not err.out
 
 
 def test_bag_with_a_fifo_inside_is_refused(tmp_path):
