@@ -153,12 +153,16 @@ def output_paths(args: argparse.Namespace) -> List[str]:
 
 def run_command(args: argparse.Namespace) -> int:
     """Run a parsed command: inputs guarded, outputs checked before any work."""
+    from accelcal_ros.filecheck import output_path_problem
     from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
 
     inputs = input_paths(args)
     outputs = output_paths(args)
     for k, output in enumerate(outputs):
         refuse_overwriting_inputs(output, inputs)
+        problem = None if os.path.isdir(output) else output_path_problem(output)
+        if problem:  # /dev/null, a FIFO: refused before any work, not after it
+            raise InputError(f'output {problem}; give a file path')
         if os.path.realpath(output) in (os.path.realpath(o) for o in outputs[:k]):
             raise InputError(f'{output} is given for two outputs; the second would overwrite '
                              'the first: give each output its own path')

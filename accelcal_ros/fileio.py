@@ -25,7 +25,8 @@ Reading never follows a path into a device, FIFO or socket and reads at most
 Inside :func:`guard_inputs` (the ``accelcal`` dispatcher wraps every command in it) every
 file read through this module and every path given to it counts as an input: writing to an
 input (same resolved path or same inode) is refused with an :class:`InputError` unless the
-writer keeps a backup; a path inside an input directory (a bag) is refused always.
+writer keeps a backup; a path inside an input bag directory, or an existing file inside
+any input directory, is refused always.
 """
 import contextlib
 import csv
@@ -340,8 +341,9 @@ def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLi
     """
     Raise InputError when ``output`` is one of ``inputs`` or lies inside an input directory.
 
-    Same resolved path or same inode; a bag is a directory, so a path inside it (its
-    ``metadata.yaml``) is refused too.
+    Same resolved path or same inode; inside an input directory an existing file (a data
+    set's image) and anything in a bag (its ``metadata.yaml``, a new file beside its
+    storage) are refused too; a new file beside a data set's files is not.
     """
     output = os.fspath(output)
     out_real = os.path.realpath(output)
@@ -356,10 +358,21 @@ def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLi
         if same:
             raise InputError(f'{output}: this is also an input of the command ({given}); '
                              'writing it would destroy the input: choose another output path')
-        if os.path.isdir(given_real) and out_real.startswith(given_real.rstrip(os.sep) + os.sep):
+        inside = os.path.isdir(given_real) and \
+            out_real.startswith(given_real.rstrip(os.sep) + os.sep)
+        if inside and (os.path.lexists(out_real) or _is_bag_directory(given_real)):
             raise InputError(f'{output}: this is inside {given}, a directory the command '
                              'reads (a bag is a directory); writing there would change the '
                              'input: choose an output path outside it')
+
+
+def _is_bag_directory(path):
+    """Whether a directory is a rosbag2 recording (metadata.yaml or storage files in it)."""
+    try:
+        names = os.listdir(path)
+    except OSError:
+        return False
+    return 'metadata.yaml' in names or any(n.endswith(('.mcap', '.db3')) for n in names)
 
 
 def _check_guard(path, backup=False):

@@ -197,7 +197,7 @@ def test_backup_by_rename_where_hard_links_fail(tmp_path, monkeypatch):
 
 
 def test_no_write_inside_an_input_directory(tmp_path):
-    """An output inside (or equal to) a directory the command reads is refused."""
+    """Anything inside a bag the command reads, or an existing file of a data set: refused."""
     bag = tmp_path / 'bag'
     bag.mkdir()
     (bag / 'metadata.yaml').write_text('x: 1\n')
@@ -209,6 +209,14 @@ def test_no_write_inside_an_input_directory(tmp_path):
         fileio.write_text_atomic(tmp_path / 'beside.yaml', 'y: 2\n')  # beside: allowed
     assert (bag / 'metadata.yaml').read_text() == 'x: 1\n'
     assert sorted(os.listdir(bag)) == ['metadata.yaml']
+    data = tmp_path / 'poses'  # a data set (not a bag): its files are inputs, new ones not
+    data.mkdir()
+    (data / 'pos01.pcd').write_text('points\n')
+    with fileio.guard_inputs([str(data)]):
+        with pytest.raises(InputError, match='a directory the command reads'):
+            fileio.write_text_atomic(data / 'pos01.pcd', 'y\n', backup=True)
+        fileio.write_text_atomic(data / 'result.yaml', 'y: 2\n')
+    assert (data / 'pos01.pcd').read_text() == 'points\n'
 
 
 def test_apply_into_the_bag_it_reads_is_refused_and_the_bag_survives(tmp_path, capsys,
@@ -253,6 +261,10 @@ def test_calibrate_onto_a_device_leaves_it_a_device(tmp_path, capsys, monkeypatc
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and len(err) == 1 and 'character device' in err[0], err
     assert _device('/dev/full') == before
+    # refused before any work: a calibration that would fail later is not even tried
+    assert main(['calibrate', 'rec.csv', '-o', '/dev/null']) == 1
+    err = capsys.readouterr()
+    assert 'output /dev/null is a character device' in err.err and not err.out
 
 
 def test_bag_with_a_fifo_inside_is_refused(tmp_path):

@@ -6,8 +6,8 @@ from accelcal_ros.fileio import read_input_bytes
 
 
 def read_file_bytes(path: PathLike, what: str = 'point cloud file') -> bytes:
-    """Return the whole content of ``path``; FileFormatError when it cannot be read."""
-    return read_input_bytes(path, what)
+    """Return the whole content of ``path`` (at most ``SIZE_LIMITS['point cloud']``)."""
+    return read_input_bytes(path, what, kind='point cloud')
 
 
 def header_lines(path: PathLike, raw: bytes,
