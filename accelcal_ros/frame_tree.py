@@ -108,7 +108,7 @@ class FrameTransform:
 
     def quaternion_xyzw(self) -> np.ndarray:
         """Rotation as a unit quaternion ``[x, y, z, w]`` (geometry_msgs order), ``w >= 0``."""
-        q = Rotation.from_matrix(self.rotation).as_quat()
+        q = Rotation.from_matrix(np.array(self.rotation)).as_quat()  # scipy 1.11: writable
         return -q if q[3] < 0 else q
 
 
