@@ -6,7 +6,10 @@ Subscribes ``imu/data_raw`` (sensor_msgs/Imu, m/s^2, sensor-data QoS). Services
 current still position now), ``calibration/finish`` (fit, save ``output_file``, apply to
 the attitude node), ``calibration/cancel``. Publishes ``calibration/status``
 (diagnostic_msgs/DiagnosticStatus, reliable, transient local) after every capture and
-every ``status_period_s`` while a session runs. The session logic is the pure
+every ``status_period_s`` while a session runs, and with it ``calibration/coverage_markers``
+(visualization_msgs/MarkerArray, same QoS, in the IMU messages' frame: every captured
+direction, the directions still missing, the next suggested orientation;
+:mod:`~accelcal_ros.calibration.markers_ros`). The session logic is the pure
 :class:`~accelcal_ros.calibration.session.Calibrator`; parameters:
 :data:`~accelcal_ros.calibration.params.CALIBRATION_PARAMS`.
 
@@ -29,7 +32,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 
 class CalibrationNode(Node):
@@ -49,6 +54,9 @@ class CalibrationNode(Node):
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'calibration/status',
                                                 status_qos)
+        self.marker_pub = self.create_publisher(MarkerArray, 'calibration/coverage_markers',
+                                                status_qos)
+        self._frame_id = 'imu_link'
         self.create_service(Trigger, 'calibration/start', self._on_start)
         self.create_service(Trigger, 'calibration/capture', self._on_capture)
         self.create_service(Trigger, 'calibration/finish', self._on_finish)
@@ -64,6 +72,7 @@ class CalibrationNode(Node):
             return
         a = msg.linear_acceleration
         stamp = msg.header.stamp
+        self._frame_id = msg.header.frame_id or self._frame_id
         g = STANDARD_GRAVITY_M_S2
         events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
                                             (a.x / g, a.y / g, a.z / g))
@@ -234,6 +243,16 @@ class CalibrationNode(Node):
             status.message = 'idle: call calibration/start'
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         self.status_pub.publish(status)
+        self._publish_markers(progress)
+
+    def _publish_markers(self, progress):
+        from accelcal_ros.calibration.markers_ros import coverage_markers
+
+        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._frame_id)
+        captured = self.calibrator.captured_means()[0] if progress.active else []
+        self.marker_pub.publish(coverage_markers(
+            header, captured, self.calibrator.config.coverage_radius_deg,
+            bool(progress.active and progress.hints)))
 
 
 def main(args=None):
