@@ -18,9 +18,10 @@ model does). The reader checks each matrix's ``rows`` x ``cols`` against its dat
 names the file and key of whatever is wrong.
 """
 import os
-from typing import Any, Dict, Mapping, Tuple, Union
+from typing import Any, Dict, Mapping, Sequence, Tuple, Union
 
 from accelcal_ros.camera.model import camera_model_from_mapping, CameraModel
+from accelcal_ros.camera.rig import Rig, RigCamera
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
 import numpy as np
@@ -97,19 +98,23 @@ def load_camera_info(path: PathLike) -> Tuple[str, CameraModel]:
         raise FileFormatError(path, str(exc)) from None
 
 
-def camera_model_from_info(width: int, height: int, k: Any, d: Any,
-                           distortion_model: str, where: str = 'camera_info'
-                           ) -> CameraModel:
+def rig_with_models(rig: Rig, models: Sequence[CameraModel],
+                    sources: Sequence[str]) -> Rig:
     """
-    Return the camera model of a sensor_msgs/CameraInfo's fields (``k`` 9 values, ``d``).
+    Return ``rig`` with each camera's intrinsics replaced by ``models`` (rig order).
 
-    A message with ``k`` all zero (an uncalibrated camera) is refused, as are the other
-    invalid values :func:`~accelcal_ros.camera.model.camera_model_from_mapping` refuses.
+    Each model must have the size of the camera's images as the rig file states it (what
+    the image subscriptions check every frame against); ``sources`` name where each model
+    came from (a topic) for the error.
     """
-    k = np.asarray(k, dtype=float).reshape(-1)
-    if k.size != 9 or not np.any(k):
-        raise InputError(f'{where}: K is not set (an uncalibrated camera?)')
-    return camera_model_from_mapping({'width': int(width), 'height': int(height),
-                                      'K': k.tolist(), 'D': [float(v) for v in d],
-                                      'distortion_model': distortion_model or 'plumb_bob'},
-                                     where)
+    if len(models) != len(rig) or len(sources) != len(rig):
+        raise InputError(f'{len(models)} camera_info(s) for a rig of {len(rig)} cameras '
+                         f'({", ".join(rig.names)})')
+    cams = []
+    for cam, model, source in zip(rig.cameras, models, sources):
+        if model.size != cam.size:
+            raise InputError(f'{source}: camera_info is {model.width}x{model.height} but '
+                             f'the images of camera {cam.name} are {cam.width}x{cam.height} (the '
+                             'rig file): wrong topic, or the driver crops or bins?')
+        cams.append(RigCamera.from_model(cam.name, model, cam.R))
+    return Rig(tuple(cams), rig.imu_to_camera)

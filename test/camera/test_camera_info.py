@@ -1,7 +1,8 @@
 """camera_info YAML (camera_calibration_parsers' format): written, read back exactly, checked."""
-from accelcal_ros.camera.camera_info import (camera_model_from_info, load_camera_info,
+from accelcal_ros.camera.camera_info import (load_camera_info, rig_with_models,
                                              save_camera_info)
 from accelcal_ros.camera.model import CameraModel
+from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import FileFormatError, InputError
 import numpy as np
 import pytest
@@ -62,9 +63,13 @@ def test_bad_files_name_the_file_and_the_key(tmp_path, edit, reason):
     assert 'cam.yaml' in str(info.value)
 
 
-def test_camera_info_message_fields():
-    """The fields of a CameraInfo build the model; an all-zero K (uncalibrated) is refused."""
-    model = camera_model_from_info(640, 480, K.reshape(-1), [0.1, 0, 0, 0, 0], 'plumb_bob')
-    assert np.array_equal(model.K, K) and model.size == (640, 480)
-    with pytest.raises(InputError, match='not set'):
-        camera_model_from_info(640, 480, [0.0] * 9, [], '')
+def test_rig_takes_camera_info_intrinsics_of_the_right_size():
+    """rig_with_models swaps K and D, keeps R and imu_to_camera; a wrong size is refused."""
+    rig = ring_rig(2, width=640, height=480)
+    model = CameraModel.from_camera_info(K.reshape(-1), LENSES[0][1], 'plumb_bob', 640, 480)
+    swapped = rig_with_models(rig, [model, model], ['a/camera_info', 'b/camera_info'])
+    assert np.array_equal(swapped.cameras[1].K, K)
+    assert np.array_equal(swapped.cameras[1].R, rig.cameras[1].R)
+    small = CameraModel.from_camera_info(K.reshape(-1), [], '', 320, 240)
+    with pytest.raises(InputError, match='b/camera_info: camera_info is 320x240'):
+        rig_with_models(rig, [model, small], ['a/camera_info', 'b/camera_info'])
