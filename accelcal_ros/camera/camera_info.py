@@ -80,6 +80,9 @@ def camera_info_from_mapping(data: Mapping) -> Tuple[str, CameraModel]:
     d = data.get('distortion_coefficients')
     if isinstance(d, Mapping) and isinstance(d.get('data'), list):
         rows, cols = d.get('rows', 1), d.get('cols', len(d['data']))
+        if not all(isinstance(v, int) and not isinstance(v, bool) for v in (rows, cols)):
+            raise InputError(f'distortion_coefficients: rows and cols must be integers, got '
+                             f'{rows!r} x {cols!r}')
         if rows * cols != len(d['data']):
             raise InputError(f'distortion_coefficients: {rows}x{cols} but '
                              f'{len(d["data"])} values')
