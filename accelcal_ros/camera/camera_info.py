@@ -119,5 +119,5 @@ def rig_with_models(rig: Rig, models: Sequence[CameraModel],
             raise InputError(f'{source}: camera_info is {model.width}x{model.height} but '
                              f'the images of camera {cam.name} are {cam.width}x{cam.height} (the '
                              'rig file): wrong topic, or the driver crops or bins?')
-        cams.append(RigCamera.from_model(cam.name, model, cam.R))
+        cams.append(RigCamera.from_model(cam.name, model, cam.R, cam.t))
     return Rig(tuple(cams), rig.imu_to_camera)

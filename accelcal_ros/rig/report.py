@@ -32,7 +32,8 @@ def rig_of(result: RigCalibration) -> Rig:
         w, h = result.sizes[i]
         model = CameraModel(int(w), int(h), np.round(result.K[i], 6),
                             np.round(result.D[i][:5], 9))
-        cams.append(RigCamera.from_model(name, model, result.fit.rotations[i]))
+        cams.append(RigCamera.from_model(name, model, result.fit.rotations[i],
+                                         np.round(result.fit.translations_m[i], 6)))
     return Rig(tuple(cams), result.mount.imu_to_camera)
 
 
