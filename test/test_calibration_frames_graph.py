@@ -100,6 +100,19 @@ def test_late_joiner_gets_one_connected_tree_equal_to_the_files(graph, tmp_path)
     msg = _wait(lambda: _latest(late))
     tfs = {m.child_frame_id: msg_to_transform(m) for m in msg.transforms}
     assert len(tfs) == 5 and np.abs(tfs['lidar_link'].rotation - new_r).max() < 1e-9
+
+    # run time: an invalid frame name is refused with the reason, a valid one republishes
+    # (with the files usable again: a change that cannot build the tree is refused too)
+    _write_boresight(tmp_path / 'boresight.yaml', [0.0, 0.0, -30.0])
+    (result,) = graph.set_parameters('calibration_frames', {'lidar_frame': '/velodyne'})
+    assert not result.successful and 'leading' in result.reason
+    (result,) = graph.set_parameters('calibration_frames', {'lidar_frame': 'velodyne'})
+    assert result.successful, result.reason
+
+    def renamed():
+        children = {m.child_frame_id for m in _latest(late).transforms}
+        return 'velodyne' in children and 'lidar_link' not in children
+    assert _wait(renamed), proc.output()
     assert proc.stop() == 0
 
 
