@@ -76,3 +76,38 @@ def test_rig_calibration_node_captures_reports_and_refuses_early_finish(graph, t
     assert 'show' in latest['next']
     finish = graph.call(Trigger, 'rig_calibration/finish', timeout=60.0)
     assert not finish.success and 'need at least 4' in finish.message
+
+
+@pytest.mark.graph
+def test_rig_calibration_finish_publishes_the_rig_on_tf_static(graph, tmp_path):
+    """Poses already in capture_dir; finish writes the rig and publishes it (late joiner)."""
+    from accelcal_ros.camera.rig import load_rig
+    from accelcal_ros.frame_tree import check_tree, to_ancestor
+    from accelcal_ros.rig.render import write_dataset
+    from accelcal_ros.rosutil.static_tf import msg_to_transform, STATIC_TF_QOS
+    from tf2_msgs.msg import TFMessage
+
+    truth = default_truth()
+    capture_dir = tmp_path / 'capture'
+    write_dataset(str(capture_dir), truth, plan_poses(truth, 12))
+    output = tmp_path / 'rig.yaml'
+    proc = graph.start('rig_calibration', params={
+        'cameras': truth.names, 'board': '11x8', 'square_m': 0.025,
+        'capture_dir': str(capture_dir), 'output_file': str(output)})
+    finish = graph.call(Trigger, 'rig_calibration/finish', timeout=240.0)
+    assert finish.success, finish.message + proc.output()
+    tf_static = graph.collect(TFMessage, '/tf_static', qos=STATIC_TF_QOS)
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and not tf_static.snapshot()[0]:
+        time.sleep(0.05)
+    (msg,) = tf_static.snapshot()[0]
+    transforms = [msg_to_transform(m) for m in msg.transforms]
+    assert check_tree(transforms) == 'imu_link'
+    rig = load_rig(output)
+    v = np.array([0.3, -1.2, 2.0])
+    for cam in rig.cameras:
+        r, t = to_ancestor(transforms, f'{cam.name}_optical_frame', 'imu_link')
+        expected = rig.imu_to_camera.T @ (cam.R.T @ (v - cam.t))
+        assert np.abs(r @ v + t - expected).max() < 1e-9, cam.name
+    for name in truth.names:
+        assert os.path.exists(str(output)[:-5] + f'_{name}_camera_info.yaml')
