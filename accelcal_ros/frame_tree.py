@@ -24,7 +24,8 @@ edge (parent -> child)                       from the files
 ``<cam0>_optical_frame`` ->                  ``R_0i`` maps reference-camera vectors into
 ``<cam i>_optical_frame``                    camera ``i`` (``v_i = R_0i v_0 + t_0i``), so
                                              ``R = R_0i^T``, ``t = -R_0i^T t_0i``
-                                             (``t_0i = 0`` where the file has none)
+                                             (``t_0i`` = the camera's ``t_m``, 0 where
+                                             the rig file has none)
 ``imu_link`` -> ``lidar_link``               the boresight ``R`` maps LiDAR vectors into
                                              the IMU frame and the lever arm ``l`` is the
                                              LiDAR origin there (paper B,
@@ -108,7 +109,7 @@ class FrameTransform:
 
     def quaternion_xyzw(self) -> np.ndarray:
         """Rotation as a unit quaternion ``[x, y, z, w]`` (geometry_msgs order), ``w >= 0``."""
-        q = Rotation.from_matrix(self.rotation).as_quat()
+        q = Rotation.from_matrix(np.array(self.rotation)).as_quat()  # scipy 1.11: writable
         return -q if q[3] < 0 else q
 
 
@@ -227,7 +228,7 @@ def camera_transforms(names: FrameNames, rig: Rig, imu_to_camera: Optional[Array
 
     ``imu_to_camera`` overrides the rig file's (else
     :data:`~accelcal_ros.frames.DEFAULT_IMU_TO_CAMERA`); ``camera_translations_m`` maps a
-    camera name to its ``t_0i`` (m; zero where absent).
+    camera name to its ``t_0i`` (m), else the rig file's ``t_m``, else zero.
     """
     check_frame_id(names.imu, 'IMU frame')
     mount = imu_to_camera if imu_to_camera is not None else rig.imu_to_camera
@@ -241,7 +242,8 @@ def camera_transforms(names: FrameNames, rig: Rig, imu_to_camera: Optional[Array
     out = [FrameTransform(names.imu, ref, m.T, np.zeros(3))]
     for index, cam in enumerate(rig.cameras[1:], start=1):
         frame = names.camera(check_frame_id(cam.name, f'camera {index} name'))
-        t_0i = np.asarray(translations.get(cam.name, np.zeros(3)), dtype=float)
+        t_0i = np.asarray(translations.get(cam.name, np.zeros(3) if cam.t is None else cam.t),
+                          dtype=float)
         out.append(FrameTransform(ref, frame, cam.R.T, -cam.R.T @ t_0i.reshape(-1)))
     check_tree(out)
     return out

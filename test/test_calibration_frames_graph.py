@@ -2,7 +2,7 @@
 import time
 
 from accelcal_ros.boresight_file import load_boresight
-from accelcal_ros.camera.rig import load_rig, rig_to_mapping, ring_rig, save_rig
+from accelcal_ros.camera.rig import load_rig, rig_to_mapping, ring_rig
 from accelcal_ros.fileio import dump_yaml, write_text_atomic
 from accelcal_ros.frame_tree import check_tree, to_ancestor
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
@@ -44,9 +44,10 @@ def _latest(collector):
 def test_late_joiner_gets_one_connected_tree_equal_to_the_files(graph, tmp_path):
     """Vectors in lidar_link and every camera frame reach base_link as the files' math says."""
     imu_to_camera = rotation_from_rpy_radians(0.1, -0.2, 0.3) @ DEFAULT_IMU_TO_CAMERA
-    rig = ring_rig(3, mount_error_deg=1.0, seed=3, names=['front', 'right', 'left'],
-                   imu_to_camera=imu_to_camera)
-    save_rig(tmp_path / 'rig.yaml', rig)
+    rig = rig_to_mapping(ring_rig(3, mount_error_deg=1.0, seed=3,
+                                  names=['front', 'right', 'left'], imu_to_camera=imu_to_camera))
+    rig['cameras'][1]['t_m'] = [0.12, -0.03, 0.04]     # t_01: X_1 = R_01 X_0 + t_01
+    write_text_atomic(tmp_path / 'rig.yaml', dump_yaml(rig))
     _write_boresight(tmp_path / 'boresight.yaml', [1.0, -2.0, 45.0])
     proc = graph.start('calibration_frames', params={
         'rig_file': str(tmp_path / 'rig.yaml'), 'boresight_file': str(tmp_path / 'boresight.yaml'),
@@ -76,8 +77,10 @@ def test_late_joiner_gets_one_connected_tree_equal_to_the_files(graph, tmp_path)
     assert np.abs(r @ v + t - expected).max() < 1e-9
     for cam in rig.cameras:
         r, t = to_ancestor(transforms, f'{cam.name}_optical_frame', 'base_link')
-        # v_i = R_0i v_0 and v_0 = imu_to_camera v_imu  =>  v_imu = M^T R_0i^T v_i
-        expected = mount @ (rig.imu_to_camera.T @ (cam.R.T @ v)) + MOUNT_XYZ
+        # v_i = R_0i v_0 + t_0i and v_0 = imu_to_camera v_imu
+        #   =>  v_imu = M^T R_0i^T (v_i - t_0i)
+        t_0i = np.zeros(3) if cam.t is None else cam.t
+        expected = mount @ (rig.imu_to_camera.T @ (cam.R.T @ (v - t_0i))) + MOUNT_XYZ
         assert np.abs(r @ v + t - expected).max() < 1e-9, cam.name
 
     # a new boresight file is published again, without a restart
@@ -97,6 +100,19 @@ def test_late_joiner_gets_one_connected_tree_equal_to_the_files(graph, tmp_path)
     msg = _wait(lambda: _latest(late))
     tfs = {m.child_frame_id: msg_to_transform(m) for m in msg.transforms}
     assert len(tfs) == 5 and np.abs(tfs['lidar_link'].rotation - new_r).max() < 1e-9
+
+    # run time: an invalid frame name is refused with the reason, a valid one republishes
+    # (with the files usable again: a change that cannot build the tree is refused too)
+    _write_boresight(tmp_path / 'boresight.yaml', [0.0, 0.0, -30.0])
+    (result,) = graph.set_parameters('calibration_frames', {'lidar_frame': '/velodyne'})
+    assert not result.successful and 'leading' in result.reason
+    (result,) = graph.set_parameters('calibration_frames', {'lidar_frame': 'velodyne'})
+    assert result.successful, result.reason
+
+    def renamed():
+        children = {m.child_frame_id for m in _latest(late).transforms}
+        return 'velodyne' in children and 'lidar_link' not in children
+    assert _wait(renamed), proc.output()
     assert proc.stop() == 0
 
 

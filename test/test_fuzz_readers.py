@@ -189,14 +189,9 @@ def _read_imu_bag(path):
 
 
 def _read_camera_info(path):
-    from accelcal_ros.camera.model import camera_model_from_mapping
-    from accelcal_ros.fileio import load_yaml_mapping
+    from accelcal_ros.camera.camera_info import load_camera_info
 
-    data = load_yaml_mapping(path, 'camera_info file')
-    for key in ('camera_matrix', 'distortion_coefficients'):
-        if isinstance(data.get(key), dict) and 'data' in data[key]:
-            data[key] = data[key]['data']
-    return camera_model_from_mapping(data, str(path))
+    return load_camera_info(path)
 
 
 def _read_pcd(path):

@@ -49,7 +49,7 @@ def test_keys_added_after_the_snapshot_name_their_rosdistro_pull_request():
 
 
 def test_no_unused_message_package_is_declared():
-    """A ROS package is declared only if some module imports it (visualization_msgs: none)."""
+    """A ROS package is declared only if some module imports it."""
     sources = []
     for folder, _, files in os.walk(os.path.join(REPO, 'accelcal_ros')):
         sources += [os.path.join(folder, f) for f in files if f.endswith('.py')]
@@ -59,5 +59,3 @@ def test_no_unused_message_package_is_declared():
             imported |= set(re.findall(r'^\s*(?:from|import) (\w+)', handle.read(), re.M))
     messages = {k for k in _declared_keys() if k.endswith(('_msgs', '_srvs', '_interfaces'))}
     assert messages - imported == set()
-    with open(os.path.join(REPO, 'tools', 'requirements-ros.txt')) as handle:
-        assert 'visualization' not in handle.read()

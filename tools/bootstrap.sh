@@ -48,7 +48,8 @@ fi
 # definition and type hash as ROS 2's) with the rosidl wheels into the same install/.
 # Needs a C/C++ compiler and the Python headers (installed here as root with apt-get, as
 # python3-venv above); rebuilt only when the interface files or the venv changed.
-tf2_hash=$( { echo "$req_hash"; find tools/interfaces -type f | sort | xargs cat; } | sha256sum | cut -c1-16)
+tf2_hash=$( { echo "$req_hash"; find tools/interfaces -type f | sort;
+             find tools/interfaces -type f | sort | xargs cat; } | sha256sum | cut -c1-16)
 if [ ! -f "$install/.accelcal-tf2_msgs" ] || [ "$(cat "$install/.accelcal-tf2_msgs")" != "$tf2_hash" ]; then
   need=()
   command -v c++ >/dev/null && command -v cc >/dev/null || need+=(g++)

@@ -111,9 +111,26 @@ def suggest_directions(captured: ArrayLike, count: int = 3,
     Greedy farthest-point choice among :data:`CANDIDATES`; candidates within
     ``min_separation_deg`` of a captured or chosen direction are never suggested.
     """
+    return [name for name, _ in suggested_directions(captured, count, min_separation_deg)]
+
+
+def missing_directions(captured: ArrayLike, radius_deg: float = 40.0,
+                       layout: int = 12) -> np.ndarray:
+    """Directions of :func:`recommended_directions` (``layout``) not yet within ``radius_deg``."""
+    wanted = recommended_directions(layout)
+    captured = unit_directions(captured) if np.size(captured) else np.zeros((0, 3))
+    if not len(captured):
+        return wanted
+    closest = np.max(wanted @ captured.T, axis=1)
+    return wanted[closest < np.cos(np.radians(radius_deg))]
+
+
+def suggested_directions(captured: ArrayLike, count: int = 3, min_separation_deg: float = 25.0
+                         ) -> List[Tuple[str, np.ndarray]]:
+    """:func:`suggest_directions` with each suggestion's unit ``f`` direction."""
     captured = np.asarray(captured, dtype=float).reshape(-1, 3)
     chosen = list(unit_directions(captured)) if len(captured) else []
-    names = []
+    names: List[Tuple[str, np.ndarray]] = []
     for _ in range(count):
         if chosen:
             closest = np.max(CANDIDATES @ np.array(chosen).T, axis=1)
@@ -123,7 +140,7 @@ def suggest_directions(captured: ArrayLike, count: int = 3,
         if chosen and closest[best] > np.cos(np.radians(min_separation_deg)):
             break
         chosen.append(CANDIDATES[best])
-        names.append(describe_direction(CANDIDATES[best]))
+        names.append((describe_direction(CANDIDATES[best]), CANDIDATES[best].copy()))
     return names
 
 

@@ -7,7 +7,11 @@ current still position now), ``calibration/finish`` (fit, save ``output_file``, 
 the attitude node), ``calibration/cancel``. Publishes ``calibration/status``
 (diagnostic_msgs/DiagnosticStatus, reliable, transient local) after every capture and
 every ``status_period_s`` while a session runs, and ``/diagnostics``: the interface every
-calibration node shares (:mod:`accelcal_ros.session_interface`). The session logic is the pure
+calibration node shares (:mod:`accelcal_ros.session_interface`). With every status it
+publishes ``calibration/coverage_markers`` (visualization_msgs/MarkerArray, same QoS, in
+the IMU messages' frame: every captured direction, the directions still missing, the
+next suggested orientation; :mod:`~accelcal_ros.calibration.markers_ros`). The session
+logic is the pure
 :class:`~accelcal_ros.calibration.session.Calibrator`; parameters:
 :data:`~accelcal_ros.calibration.params.CALIBRATION_PARAMS`.
 
@@ -29,7 +33,10 @@ from accelcal_ros.session_interface import OK, SessionProgress, WARN
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
+from visualization_msgs.msg import MarkerArray
 
 
 class CalibrationNode(Node):
@@ -43,6 +50,12 @@ class CalibrationNode(Node):
         self.saved_path = ''
         self._apply_clients = {}
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
+        # markers first: the interface publishes the first status (and with it markers)
+        marker_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.marker_pub = self.create_publisher(MarkerArray, 'calibration/coverage_markers',
+                                                marker_qos)
+        self._frame_id = 'imu_link'
         self.session = CalibrationInterface(
             self, self, 'accelerometer calibration', 'adxl345',
             'hold the sensor still in a new orientation (auto capture) or call '
@@ -60,6 +73,7 @@ class CalibrationNode(Node):
             return
         a = msg.linear_acceleration
         stamp = msg.header.stamp
+        self._frame_id = msg.header.frame_id or self._frame_id
         g = STANDARD_GRAVITY_M_S2
         events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
                                             (a.x / g, a.y / g, a.z / g))
@@ -172,6 +186,17 @@ class CalibrationNode(Node):
                                'call calibration/start for a new calibration', extra,
                                f'last calibration: {r.summary()}',
                                WARN if r.warnings else OK)
+
+    def status_published(self, active):
+        """Publish the coverage markers beside each status (the interface's hook)."""
+        from accelcal_ros.calibration.markers_ros import coverage_markers
+
+        progress = self.calibrator.progress()
+        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._frame_id)
+        captured = self.calibrator.captured_means()[0] if progress.active else []
+        self.marker_pub.publish(coverage_markers(
+            header, captured, self.calibrator.config.coverage_radius_deg,
+            bool(progress.active and progress.hints)))
 
 
 def main(args=None):

@@ -14,13 +14,16 @@ File format (paper A: ``K_i`` and ``R_0i`` from a photogrammetric calibration)::
         D: [k1, k2, p1, p2, k3]                # optional, OpenCV model (4 or 5 values)
         distortion_model: plumb_bob            # optional (written only when not plumb_bob)
         R: [1, 0, 0, 0, 1, 0, 0, 0, 1]         # R_0i row-major
+        t_m: [0, 0, 0]                         # optional: t_0i (m), X_i = R_0i X_0 + t_0i
       - name: cam1
         ...
     imu_to_camera: [...]      # optional: 9 values row-major, IMU body -> reference optical
 
 A camera entry is a camera model (:class:`~accelcal_ros.camera.CameraModel`, its
 mapping form: ``width``, ``height``, ``K``, ``D``, ``distortion_model``) plus ``name``
-and ``R``. ``R`` is ``R_0i``: it maps a vector in the reference camera's optical frame
+and ``R``. ``t_m`` (optional, m) is ``t_0i`` of ``X_i = R_0i X_0 + t_0i`` (the rig calibration
+writes it; the stitcher ignores it, the frame tree places the camera with it).
+``R`` is ``R_0i``: it maps a vector in the reference camera's optical frame
 (x right, y down, z forward) into camera ``i``'s optical frame; ``R_00 = I``. Camera
 ``i``'s optical axis in the reference frame is therefore the third row of ``R_0i``.
 ``imu_to_camera`` (:data:`accelcal_ros.frames.DEFAULT_IMU_TO_CAMERA` when absent, as the
@@ -58,6 +61,8 @@ class RigCamera:
     name: str
     model: CameraModel
     R: np.ndarray
+    t: Optional[np.ndarray] = None
+    """``t_0i`` (m) where known: ``X_i = R_0i X_0 + t_0i`` (the frame tree uses it)."""
 
     def __init__(self, name: str, width: int, height: int, K: np.ndarray,
                  D: Sequence[float] = (), R: Optional[np.ndarray] = None,
@@ -65,18 +70,24 @@ class RigCamera:
         model = CameraModel(width, height, K, np.asarray(D, dtype=float), distortion_model)
         self._set(name, model, np.eye(3) if R is None else R)
 
-    def _set(self, name: str, model: CameraModel, r: np.ndarray) -> None:
+    def _set(self, name: str, model: CameraModel, r: np.ndarray,
+             t: Optional[np.ndarray] = None) -> None:
         r = np.array(r, dtype=float).reshape(3, 3)
         r.setflags(write=False)
         object.__setattr__(self, 'name', str(name))
         object.__setattr__(self, 'model', model)
         object.__setattr__(self, 'R', r)
+        if t is not None:
+            t = np.array(t, dtype=float).reshape(3)
+            t.setflags(write=False)
+        object.__setattr__(self, 't', t)
 
     @classmethod
-    def from_model(cls, name: str, model: CameraModel, r: np.ndarray) -> 'RigCamera':
-        """Return the rig camera ``name`` with ``model`` and ``R_0i = r``."""
+    def from_model(cls, name: str, model: CameraModel, r: np.ndarray,
+                   t: Optional[np.ndarray] = None) -> 'RigCamera':
+        """Return the rig camera ``name`` with ``model``, ``R_0i = r`` (and ``t_0i = t``)."""
         cam = cls.__new__(cls)
-        cam._set(name, model, r)
+        cam._set(name, model, r, t)
         return cam
 
     @property
@@ -171,8 +182,8 @@ class Rig:
         return Rig(self.cameras, imu_to_camera)
 
 
-CAMERA_ENTRY_KEYS = ('name', 'width', 'height', 'K', 'D', 'distortion_model', 'R')
-"""Keys of one ``cameras:`` entry (``D`` and ``distortion_model`` optional)."""
+CAMERA_ENTRY_KEYS = ('name', 'width', 'height', 'K', 'D', 'distortion_model', 'R', 't_m')
+"""Keys of one ``cameras:`` entry (``D``, ``distortion_model`` and ``t_m`` optional)."""
 
 
 def _number_list(value: Any, count_choices: Sequence[int], where: str,
@@ -215,7 +226,8 @@ def camera_from_mapping(entry: Any, index: int) -> RigCamera:
     model = camera_model_from_mapping(entry, where)
     r = rotation_matrix_from_list(_number_list(entry['R'], (9,), where, 'R'),
                                   name=f'{where}: R', tolerance=1e-4)
-    return RigCamera.from_model(name, model, r)
+    t = _number_list(entry['t_m'], (3,), where, 't_m') if entry.get('t_m') is not None else None
+    return RigCamera.from_model(name, model, r, t)
 
 
 def rig_from_mapping(data: Mapping, source: str = 'rig') -> Rig:
@@ -255,6 +267,8 @@ def rig_to_mapping(rig: Rig) -> Dict[str, Any]:
         if entry['distortion_model'] == PLUMB_BOB:
             del entry['distortion_model']
         entry['R'] = [float(x) + 0.0 for x in cam.R.reshape(-1)]
+        if cam.t is not None:
+            entry['t_m'] = [float(x) + 0.0 for x in cam.t]
         cams.append(entry)
     out: Dict[str, Any] = {'cameras': cams}
     if rig.imu_to_camera is not None:

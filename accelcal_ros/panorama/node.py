@@ -87,6 +87,10 @@ class StitcherNode(Node):
             raise InputError('parameter rig_file is required (the rig YAML: cameras with '
                              'name, width, height, K, D, R)')
         self.rig = load_rig(v['rig_file'])
+        if v['camera_info_topics']:   # K and D from the drivers, checked against the sizes
+            from accelcal_ros.rosutil.camera_info import rig_from_camera_info
+            self.rig = rig_from_camera_info(self, self.rig, v['camera_info_topics'],
+                                            v['camera_info_timeout_s'])
         topics = list(v['camera_topics']) or [f'{name}/image_raw' for name in self.rig.names]
         if len(topics) != len(self.rig):
             raise InputError(f'camera_topics has {len(topics)} topic(s) but the rig has '

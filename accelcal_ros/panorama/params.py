@@ -126,6 +126,12 @@ STITCHER_PARAMS = [
     ParamSpec('jpeg_quality', 80, 'JPEG quality of panorama/compressed', minimum=1,
               maximum=100),
     ParamSpec('frame_id', 'panorama', 'frame_id of the published panorama'),
+    ParamSpec('camera_info_topics', [], 'one sensor_msgs/CameraInfo topic per camera (rig '
+              'order): K and D from the camera drivers instead of the rig file (R_0i and '
+              'imu_to_camera still from it); empty = those of the rig file', kind='string_array',
+              read_only=True),
+    ParamSpec('camera_info_timeout_s', 10.0, 'how long start-up waits for camera_info_topics',
+              minimum=0.1, maximum=600.0, unit='s', read_only=True),
     ParamSpec('sync_tolerance_s', 0.02, 'frames of different cameras whose stamps differ by '
               'at most this are stitched together', minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('attitude_tolerance_s', 0.5, 'the attitude used is the one nearest the frame '

@@ -32,7 +32,8 @@ def rig_of(result: RigCalibration) -> Rig:
         w, h = result.sizes[i]
         model = CameraModel(int(w), int(h), np.round(result.K[i], 6),
                             np.round(result.D[i][:5], 9))
-        cams.append(RigCamera.from_model(name, model, result.fit.rotations[i]))
+        cams.append(RigCamera.from_model(name, model, result.fit.rotations[i],
+                                         np.round(result.fit.translations_m[i], 6)))
     return Rig(tuple(cams), result.mount.imu_to_camera)
 
 
@@ -127,14 +128,25 @@ def report_lines(result: RigCalibration) -> List[str]:
 
 
 def write_outputs(path: str, result: RigCalibration) -> List[str]:
-    """Write the rig file, ``<stem>_report.yaml`` and ``<stem>.png``; return their paths."""
+    """
+    Write the rig file, its report, plot and camera_info files; return their paths.
+
+    ``<stem>_report.yaml``, ``<stem>.png`` and per camera ``<stem>_<camera>_camera_info.yaml``
+    (camera_calibration_parsers YAML for a camera driver's ``camera_info_url``).
+    """
+    from accelcal_ros.camera.camera_info import save_camera_info
+
     stem = path[:-5] if path.endswith('.yaml') else path
     report_path = stem + '_report.yaml'
     plot_path = stem + '.png'
-    save_rig(path, rig_of(result))
+    rig = rig_of(result)
+    save_rig(path, rig)
     write_text_atomic(report_path, dump_yaml(report_mapping(result)))
     plot(plot_path, result)
-    return [path, report_path, plot_path]
+    info_paths = [f'{stem}_{cam.name}_camera_info.yaml' for cam in rig.cameras]
+    for cam, info_path in zip(rig.cameras, info_paths):
+        save_camera_info(info_path, cam.name, cam.model)
+    return [path, report_path, plot_path] + info_paths
 
 
 def plot(path: str, result: RigCalibration) -> None:

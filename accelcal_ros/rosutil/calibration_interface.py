@@ -13,6 +13,8 @@ with these methods (called from the executor; the backend takes its own lock):
 - ``progress(active: bool) ->``
   :class:`~accelcal_ros.session_interface.SessionProgress`.
 - ``output_file() -> str``: the path finish writes (expanded).
+- ``status_published(active: bool)`` (optional): called after each status is published
+  (e.g. the calibration node's coverage markers go out with it).
 
 The interface offers ``<node>/start``, ``capture``, ``cancel``, ``finish``
 (std_srvs/Trigger), publishes ``<node>/status`` (diagnostic_msgs/DiagnosticStatus,
@@ -116,6 +118,9 @@ class CalibrationInterface:
         """Publish the current status on ``<node>/status``."""
         status = self._status()
         self.status_pub.publish(status)
+        hook = getattr(self.backend, 'status_published', None)
+        if hook is not None:
+            hook(self.state.active)
         return status
 
     def _on_timer(self):

@@ -123,3 +123,22 @@ def test_horizon_end_to_end(calibrated):
     deviation = np.abs(rows['calibrated'][both] - rows['true'][both])
     print(f'horizon deviation: max {deviation.max():.2f} px, mean {deviation.mean():.2f} px')
     assert deviation.max() < 1.0
+
+
+def test_one_camera_info_file_per_camera_with_the_rig_files_intrinsics(calibrated):
+    """rig-calibrate writes <stem>_<camera>_camera_info.yaml: K and D as in the rig file."""
+    from accelcal_ros.camera.camera_info import load_camera_info
+
+    rig = load_rig(calibrated[1])
+    for cam in rig.cameras:
+        name, model = load_camera_info(str(calibrated[1])[:-5] + f'_{cam.name}_camera_info.yaml')
+        assert name == cam.name and model.size == cam.model.size
+        assert np.array_equal(model.K, cam.model.K) and np.array_equal(model.D, cam.model.D)
+
+
+def test_rig_file_holds_the_translations(calibrated):
+    """t_m of each camera (the frame tree's camera offsets) is the fit's t_0i: within 5 mm."""
+    rig = load_rig(calibrated[1])
+    assert np.array_equal(rig.cameras[0].t, np.zeros(3))
+    for i, cam in enumerate(rig.cameras[1:], start=1):
+        assert np.linalg.norm(cam.t - TRUTH.translation(i)) < 0.005
