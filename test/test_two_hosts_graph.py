@@ -167,3 +167,26 @@ def test_static_peers_without_multicast_discovery(two_hosts, tmp_path):
         driver.stop()
     print(f'static peers across two hosts: {counts}')
     assert counts['no peer'] == 0 and counts['static peer'] >= 50, counts
+
+
+def _namespaces():
+    listing = subprocess.run(['ip', 'netns', 'list'], capture_output=True, text=True)
+    return {line.split()[0] for line in listing.stdout.splitlines() if line.strip()}
+
+
+def test_namespaces_are_removed_also_those_of_killed_runs(two_hosts):
+    """remove() deletes both namespaces (and the veth); a dead run's leftovers go too."""
+    from graph_harness.netns import remove_stale
+
+    made = set(two_hosts.names.values())
+    assert made <= _namespaces()
+    assert two_hosts.run('a', 'ip', 'addr', 'show', two_hosts.links['a']).returncode == 0
+    two_hosts.remove()
+    assert not made & _namespaces()
+    stale = 'accelcal-99999999-abcdef-a'         # no such pid: a killed run's namespace
+    subprocess.run(['ip', 'netns', 'add', stale], check=True)
+    try:
+        remove_stale()
+        assert stale not in _namespaces()
+    finally:
+        subprocess.run(['ip', 'netns', 'del', stale], capture_output=True)
