@@ -16,6 +16,7 @@ Everything made is removed at the end, also after a failure.
 """
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -115,6 +116,9 @@ def test_calibration_and_panorama_across_two_hosts(two_hosts, tmp_path):
         for proc in (attitude, calibration, stitcher):
             assert proc.proc.poll() is None, proc.output()
     finally:
+        for proc in processes:                  # all at once, then wait for each
+            if proc.proc.poll() is None:
+                proc.proc.send_signal(signal.SIGINT)
         for proc in processes:
             proc.stop()
 
@@ -157,7 +161,7 @@ def test_static_peers_without_multicast_discovery(two_hosts, tmp_path):
             probe = subprocess.run(
                 [*two_hosts.prefix('b'), sys.executable, '-m', 'graph_harness.count_topic',
                  'imu/data_raw', 'sensor_msgs/msg/Imu', '--count', '50',
-                 '--timeout', '20' if label == 'static peer' else '5'],
+                 '--timeout', '20' if label == 'static peer' else '3'],
                 env=dict(os.environ, **variables), capture_output=True, text=True, timeout=60)
             lines = [line for line in probe.stdout.splitlines() if line.startswith('{')]
             assert lines, probe.stderr[-2000:]
