@@ -171,7 +171,7 @@ def report(config, rate, size, count, cost, results, link_rate):
     print(f'  decode per set of {count} JPEGs: {cost["serial_ms"]:.1f} ms of CPU, '
           f'{cost["pool_ms"]:.1f} ms wall in the decode pool ({count} threads)')
     print(f'  {"transport":11s} {"bare sets/s":>12s} {"panoramas/s":>12s} {"ratio":>6s} '
-          f'{"alone/s":>8s} {"link MB/s*":>10s} {"node in fr/s":>13s} {"decode ms":>10s}')
+          f'{"alone/s":>8s} {"link MB/s*":>10s} {"decode ms":>10s}')
     for transport, res in results.items():
         bare = res.get('bare subscriber', {})
         node = res.get('stitcher', {})
@@ -181,7 +181,6 @@ def report(config, rate, size, count, cost, results, link_rate):
         diag = alone.get('diagnostics', {}) or node.get('diagnostics', {})
         print(f'  {transport:11s} {sets:12.2f} {pans:12.2f} {pans / max(sets, 1e-9):6.2f} '
               f'{alone.get("per_s", math.nan):8.2f} {bare.get("link_mb_s", math.nan):10.1f} '
-              f'{node.get("node_input_frames_per_s", math.nan):13.1f} '
               f'{diag.get("decode_ms", "-"):>10s}')
         for label, value in res.items():
             if 'error' in value:
