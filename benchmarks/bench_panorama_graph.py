@@ -364,11 +364,13 @@ def run_graph(publisher_options, phases, duration, warmup):
     return results
 
 
-def graph_config(config, duration, warmup, workdir, size=''):
+def graph_config(config, duration, warmup, workdir, size='', transport='raw', quality=90):
     """
     Measure one ``NxWxH@RATE`` configuration; returns the results by phase.
 
     ``size`` ``'WxH'`` sets the panorama size; empty: the node's default (from the rig).
+    ``transport`` ``compressed``: the cameras publish image_transport's JPEG (of the rig's
+    views of a scene) and the node takes them with ``image_transport:=compressed``.
     """
     from graph_harness.graph import NodeProcess
     from accelcal_ros.camera.rig import ring_rig, save_rig
@@ -380,13 +382,15 @@ def graph_config(config, duration, warmup, workdir, size=''):
     rig_path = os.path.join(workdir, f'rig_{count}x{width}x{height}.yaml')
     save_rig(rig_path, ring_rig(count, width, height, 1100.0 * width / 1280.0, 36.0))
     topics = ','.join(f'cam{i}/image_raw' for i in range(count))
-    common = ['--topics', topics, '--duration', duration, '--warmup', warmup]
+    common = ['--topics', topics, '--duration', duration, '--warmup', warmup,
+              '--transport', transport]
 
     def bare_phase(raw):
         return lambda: ([], child('bare', *common, *(['--raw'] if raw else [])))
 
     def node_phase(diag_only=False):
-        params = {'rig_file': rig_path, 'camera_topics': topics.split(',')}
+        params = {'rig_file': rig_path, 'camera_topics': topics.split(','),
+                  'image_transport': transport}
         if size:
             params['width'], params['height'] = (int(v) for v in size.split('x'))
         node = NodeProcess('stitcher', params, log_dir=workdir)
@@ -395,7 +399,9 @@ def graph_config(config, duration, warmup, workdir, size=''):
                              '--warmup', warmup, *(['--diag-only'] if diag_only else []))
 
     options = ['--topics', topics, '--width', width, '--height', height, '--rate', rate,
-               '--encoding', 'bgr8', '--wobble-deg', 2.0, '--pitch-deg', 10.0]
+               '--encoding', 'bgr8', '--wobble-deg', 2.0, '--pitch-deg', 10.0,
+               '--transport', transport, '--jpeg-quality', quality,
+               *(['--rig', rig_path] if transport == 'compressed' else [])]
     return run_graph(options, [('floor (deserialised)', bare_phase(False)),
                                ('floor (raw)', bare_phase(True)),
                                ('stitcher', node_phase),
@@ -553,7 +559,8 @@ def main():
             print(f'Fast DDS profile {use_fastdds_profile(args.shm_mb, workdir)}: shared '
                   f'memory segment {args.shm_mb:g} MB')
         for config in args.configs:
-            results = graph_config(config, args.duration, args.warmup, workdir, args.size)
+            results = graph_config(config, args.duration, args.warmup, workdir, args.size,
+                                   args.transport, args.jpeg_quality)
             fps = float(config.split('@')[1]) if config.startswith('5x640x480') else None
             report(config, results, target_fps=fps)
     del holder

@@ -9,11 +9,14 @@ host has its own address in a private /24, discovery is
 UDP-only Fast DDS profile: as between two computers, nothing goes through shared memory.
 The calibration journey (captures from A's IMU, the fit, the file, the new calibration
 set on A's ``attitude`` over the link) and the panorama (A's frames and attitude stitched
-on B) must work. Needs root and ``ip netns``; skipped otherwise, with the reason.
+on B) must work. A second test: with LOCALHOST discovery (no multicast) B finds A's nodes
+only through ``ROS_STATIC_PEERS`` (networks without multicast). Needs root and ``ip
+netns``; skipped otherwise, with the reason.
 Everything made is removed at the end, also after a failure.
 """
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -113,6 +116,9 @@ def test_calibration_and_panorama_across_two_hosts(two_hosts, tmp_path):
         for proc in (attitude, calibration, stitcher):
             assert proc.proc.poll() is None, proc.output()
     finally:
+        for proc in processes:                  # all at once, then wait for each
+            if proc.proc.poll() is None:
+                proc.proc.send_signal(signal.SIGINT)
         for proc in processes:
             proc.stop()
 
@@ -133,3 +139,58 @@ def test_calibration_and_panorama_across_two_hosts(two_hosts, tmp_path):
     # the traffic went over the link (IMU at 100 Hz, three JPEG streams at 5 Hz)
     received = after[1] - before[1]
     assert received > 1e6, (before, after)
+
+
+@pytest.mark.graph
+def test_static_peers_without_multicast_discovery(two_hosts, tmp_path):
+    """LOCALHOST discovery (no multicast): B finds A's IMU only with ROS_STATIC_PEERS."""
+    from graph_harness.graph import NodeProcess
+
+    profile = tmp_path / 'udp_only.xml'
+    profile.write_text(UDP_ONLY_PROFILE)
+    local = {'FASTRTPS_DEFAULT_PROFILES_FILE': str(profile),
+             'PYTHONPATH': os.pathsep.join([HERE, os.environ.get('PYTHONPATH', '')]),
+             'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    driver = NodeProcess('imu_driver', {'backend': 'sim', 'rate_hz': 100.0},
+                         log_dir=tmp_path, prefix=two_hosts.prefix('a'), env=local)
+    try:
+        counts = {}
+        for label, variables in (('no peer', local),
+                                 ('static peer', dict(local, ROS_STATIC_PEERS=two_hosts
+                                                      .addresses['a']))):
+            probe = subprocess.run(
+                [*two_hosts.prefix('b'), sys.executable, '-m', 'graph_harness.count_topic',
+                 'imu/data_raw', 'sensor_msgs/msg/Imu', '--count', '50',
+                 '--timeout', '20' if label == 'static peer' else '3'],
+                env=dict(os.environ, **variables), capture_output=True, text=True, timeout=60)
+            lines = [line for line in probe.stdout.splitlines() if line.startswith('{')]
+            assert lines, probe.stderr[-2000:]
+            counts[label] = json.loads(lines[-1])['count']
+        assert driver.proc.poll() is None, driver.output()
+    finally:
+        driver.stop()
+    print(f'static peers across two hosts: {counts}')
+    assert counts['no peer'] == 0 and counts['static peer'] >= 50, counts
+
+
+def _namespaces():
+    listing = subprocess.run(['ip', 'netns', 'list'], capture_output=True, text=True)
+    return {line.split()[0] for line in listing.stdout.splitlines() if line.strip()}
+
+
+def test_namespaces_are_removed_also_those_of_killed_runs(two_hosts):
+    """remove() deletes both namespaces (and the veth); a dead run's leftovers go too."""
+    from graph_harness.netns import remove_stale
+
+    made = set(two_hosts.names.values())
+    assert made <= _namespaces()
+    assert two_hosts.run('a', 'ip', 'addr', 'show', two_hosts.links['a']).returncode == 0
+    two_hosts.remove()
+    assert not made & _namespaces()
+    stale = 'accelcal-99999999-abcdef-a'         # no such pid: a killed run's namespace
+    subprocess.run(['ip', 'netns', 'add', stale], check=True)
+    try:
+        remove_stale()
+        assert stale not in _namespaces()
+    finally:
+        subprocess.run(['ip', 'netns', 'del', stale], capture_output=True)

@@ -74,6 +74,13 @@ sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Pyt
   echo "$tf2_hash" > "$install/.accelcal-tf2_msgs"
 fi
 
+# The two-host graph test (network namespaces) needs iproute2: install it only if missing
+# and root (it is skipped, with the reason, where it cannot run).
+if ! command -v ip >/dev/null && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+  apt-get update -qq && apt-get install -y -qq iproute2 >/dev/null \
+    || echo "bootstrap: could not install iproute2; the two-host test will be skipped" >&2
+fi
+
 # colcon: rebuild only when what it installs changed (sources are symlinked).
 build_hash=$( { cat setup.py setup.cfg package.xml; ls config launch resource;
                 find accelcal_ros -name '*.py' | sort; } | sha256sum | cut -c1-16)

@@ -192,6 +192,8 @@ def decode_compressed(data: Any, fmt: str, want: Optional[str] = None, topic: st
         arr = (arr >> 8).astype(np.uint8)
     elif arr.dtype != np.uint8:
         raise InputError(f'{where}{name} of {arr.dtype} samples; 8 or 16 bits expected')
+    if arr.ndim == 3 and arr.shape[2] not in (3, 4):
+        raise InputError(f'{where}{name} of {arr.shape[2]} channels; 1, 3 or 4 expected')
     label = _label(arr, info)
     if want is None or want == label:
         return arr, label

@@ -36,6 +36,7 @@ import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import (ExternalShutdownException, MultiThreadedExecutor,
                              SingleThreadedExecutor)
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -238,6 +239,19 @@ def _rcl_error() -> type:
     return rclpy_implementation.RCLError
 
 
+def rcl_error_line(exc: BaseException) -> str:
+    """
+    One line for an error of rcl/rmw (starting rclpy or the node): no C source locations.
+
+    Security errors (``ROS_SECURITY_ENABLE``) point to docs/deployment.md.
+    """
+    text = ' '.join(str(exc).split())
+    text = re.sub(r',? at /\S+:\d+', '', text).strip()
+    if 'secur' in text.lower():
+        text += ' (SROS2: see docs/deployment.md, "Security")'
+    return f'cannot start the node: {text}'
+
+
 def _close(node: Node, built: bool) -> None:
     if built:
         close = getattr(node, 'close', None)
@@ -281,6 +295,9 @@ def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
         if node is None:
             node = _node_in_traceback(exc)
         report_fatal(node, str(exc))
+        code = 1
+    except _rclpy_impl.RCLError as exc:  # rcl/rmw refused (e.g. security settings)
+        report_fatal(node, rcl_error_line(exc))
         code = 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -101,9 +101,19 @@ def test_p2p_compressed_input_poses_and_bad_frames(graph):
     assert np.linalg.norm(position - translation) < 0.01 * np.linalg.norm(translation)
 
     # bad frames: counted in /diagnostics, skipped, one (throttled) warning; node lives
+    # a PNG of the wrong size decodes, and the pipeline refuses it against camera_info
+    small = encode_compressed(image[::2, ::2].copy(), 'mono8', 'png')
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline:
+        probe.send(*small, roll, pitch)
+        time.sleep(0.15)
+        _, status = _p2p_values(diag)
+        if status is not None and 'does not match camera_info' in status.message:
+            break
+    assert 'image 320x240 does not match camera_info 640x480' in status.message
     fmt, data = jpeg
     bad = [(fmt, data[:len(data) // 3]), ('16UC1; compressedDepth png', data),
-           encode_compressed(image[::2, ::2].copy(), 'mono8', 'png')]
+           (fmt, data[:20] + bytes(200) + data[220:])]
     sent = 0
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline:

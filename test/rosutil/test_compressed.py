@@ -87,6 +87,13 @@ def test_sixteen_bit_png_keeps_the_high_byte_and_bayer_is_demosaiced():
     assert enc == 'bgr8' and np.array_equal(arr, cv2.cvtColor(bayer, cv2.COLOR_BayerBG2BGR))
 
 
+def test_png_with_alpha_is_converted():
+    bgr = _scene()
+    bgra = np.dstack([bgr, np.full(bgr.shape[:2], 200, np.uint8)])
+    arr, enc = decode_compressed(_png(bgra), 'bgra8; png compressed bgr8', want='bgr8')
+    assert enc == 'bgr8' and np.array_equal(arr, bgr)
+
+
 def test_sizes_are_read_from_the_headers():
     image = _scene(30, 50)
     jpeg = cv2.imencode('.jpg', image)[1]
