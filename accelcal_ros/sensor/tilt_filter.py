@@ -332,12 +332,14 @@ class AttitudeFilter:
         # would cross 0.05 g every few seconds
         deviation = abs(math.sqrt(fast[0] ** 2 + fast[1] ** 2 + fast[2] ** 2) - 1.0)
         accelerating = deviation > tilt.accel_threshold_g
+        # uncalibrated, |f| reads 0.85-1.15 g at rest: the magnitude proves nothing
+        blocks = accelerating and tilt.calibrated
         a_eff = max(a_fast, 1.0 / self._fast_n) if self._fast_n > 1 else 1.0
         n_fast = (2.0 - a_eff) / a_eff
         shrink_fast = a_eff / (2.0 - a_eff)
-        if still and not accelerating and stamp >= self._moving_until:
+        if still and not blocks and stamp >= self._moving_until:
             out, shrink = self._still_average(fast, (fx, fy, fz), dt, n_fast, shrink_fast)
-        if self._still is None or not still or accelerating or stamp < self._moving_until:
+        if self._still is None or not still or blocks or stamp < self._moving_until:
             # moving: 2 EMA - EMA(EMA), no lag behind a steady turn of the sensor
             self._still = None
             out = (2.0 * fast[0] - slow[0], 2.0 * fast[1] - slow[1], 2.0 * fast[2] - slow[2])
@@ -515,7 +517,8 @@ class AttitudeFilter:
             ix, iy, iz = ix + a_inn * (ex - ix), iy + a_inn * (ey - iy), iz + a_inn * (ez - iz)
             self._innovation = (ix, iy, iz)
             innovation = math.sqrt(ix * ix + iy * iy + iz * iz)
-            reject = accelerating or innovation > math.radians(settings.rejection_deg)
+            reject = (accelerating and self.tilt.calibrated) \
+                or innovation > math.radians(settings.rejection_deg)
             k_fast = 0.0
             if reject:
                 since = self._reject_since
