@@ -8,10 +8,10 @@ as their own processes (issue 15, part 1):
 * ``passthrough``: the bare rclpy floor (``benchmarks/passthrough_node.py``, rclpy's default
   executor: ``rclpy.spin``);
 * ``attitude`` and ``calibration`` (a session started, so every sample goes through the
-  still detector) and ``attitude_gyro`` (the attitude node's gyro-aided path: each sample
-  is given an angular velocity, 0.01 rad/s on each axis with its covariance, inside the
-  measured process before the node's callback) on each executor of :func:`accelcal_ros.rosutil.runner.run`: events,
-  single, multi (``ACCELCAL_EXECUTOR``).
+  still detector) and ``attitude_gyro`` (the attitude node's gyro-aided path: each
+  sample is given an angular velocity, 0.01 rad/s on each axis with its covariance,
+  inside the measured process before the node's callback) on each executor of
+  :func:`accelcal_ros.rosutil.runner.run`: events, single, multi (``ACCELCAL_EXECUTOR``).
 
 Each consumer process is the node class run as its executable runs it, with its sample
 callback wrapped by a counter that publishes ``[count, first stamp, last stamp]`` twice
@@ -23,7 +23,8 @@ the window (rate x window x delivered); the driver's is printed beside it. Run a
 ``source tools/env.sh``::
 
     python benchmarks/bench_rates.py [--seconds 10] [--rates 800 3200] \
-        [--consumers passthrough attitude attitude_gyro calibration] [--executors events single multi]
+        [--consumers passthrough attitude attitude_gyro calibration] \
+        [--executors events single multi]
 
 Numbers from a loaded machine are indicative only; take final figures on a quiet one.
 """
