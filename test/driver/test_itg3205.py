@@ -81,3 +81,13 @@ def test_saturation_and_io_errors():
     bus.fail_next(1)
     with pytest.raises(DeviceError, match='cannot read WHO_AM_I'):
         gyro.configure(100.0)
+
+
+def test_driver_gyro_rates_and_backends():
+    from accelcal_ros.driver.gyro_source import gyro_rate_hz, make_gyro
+
+    assert [gyro_rate_hz(r) for r in (100.0, 400.0, 800.0, 3200.0)] == \
+        [100.0, 1000.0 / 3, 500.0, 1000.0]
+    assert make_gyro({'gyro': 'none'}, None) is None
+    with pytest.raises(InputError, match='needs the i2c or sim backend'):
+        make_gyro({'gyro': 'itg3205', 'gyro_i2c_address': 0x68, 'backend': 'replay'}, None)
