@@ -26,7 +26,7 @@ class FilterSettings:
     """Innovation beyond which the accelerometer is ignored (the platform accelerates; deg)."""
     rejection_timeout_s: float = 20.0
     """Longest time the accelerometer is ignored before it is trusted again (s)."""
-    bias_time_constant_s: float = 1.0
+    bias_time_constant_s: float = 0.5
     """Memory of the gyro bias estimate while still (s)."""
     gyro_noise_std_rad_s: float = 0.0066
     """Gyro noise per sample (rad/s; ITG-3205: 0.38 deg/s rms)."""
