@@ -8,8 +8,10 @@ as their own processes (issue 15, part 1):
 * ``passthrough``: the bare rclpy floor (``benchmarks/passthrough_node.py``, rclpy's default
   executor: ``rclpy.spin``);
 * ``attitude`` and ``calibration`` (a session started, so every sample goes through the
-  still detector) on each executor of :func:`accelcal_ros.rosutil.runner.run`: events,
-  single, multi (``ACCELCAL_EXECUTOR``).
+  still detector) and ``attitude_gyro`` (the attitude node's gyro-aided path: each
+  sample is given an angular velocity, 0.01 rad/s on each axis with its covariance,
+  inside the measured process before the node's callback) on each executor of
+  :func:`accelcal_ros.rosutil.runner.run`: events, single, multi (``ACCELCAL_EXECUTOR``).
 
 Each consumer process is the node class run as its executable runs it, with its sample
 callback wrapped by a counter that publishes ``[count, first stamp, last stamp]`` twice
@@ -21,7 +23,8 @@ the window (rate x window x delivered); the driver's is printed beside it. Run a
 ``source tools/env.sh``::
 
     python benchmarks/bench_rates.py [--seconds 10] [--rates 800 3200] \
-        [--consumers passthrough attitude calibration] [--executors events single multi]
+        [--consumers passthrough attitude attitude_gyro calibration] \
+        [--executors events single multi]
 
 Numbers from a loaded machine are indicative only; take final figures on a quiet one.
 """
@@ -41,7 +44,7 @@ EXECUTORS = ('events', 'single', 'multi')
 
 
 # -- child: one consumer process ----------------------------------------------------------
-def _counted(node_class):
+def _counted(node_class, inject_gyro=False):
     """Subclass ``node_class`` so that every ``imu/data_raw`` sample is counted."""
     from std_msgs.msg import Float64MultiArray
 
@@ -59,6 +62,10 @@ def _counted(node_class):
                 counts[1] = stamp
             counts[0] += 1
             counts[2] = stamp
+            if inject_gyro:
+                w = msg.angular_velocity
+                w.x = w.y = w.z = 0.01
+                msg.angular_velocity_covariance[0] = 1e-4
             super()._on_imu(msg)
 
         def _bench_publish(self):
@@ -83,11 +90,12 @@ def serve(consumer):
             pass
         return 0
     from accelcal_ros.rosutil.runner import run
-    if consumer == 'attitude':
+    if consumer in ('attitude', 'attitude_gyro'):
         from accelcal_ros.attitude.node import AttitudeNode as node_class
     else:
         from accelcal_ros.calibration.node import CalibrationNode as node_class
-    return run(_counted(node_class), args=[sys.argv[0]], executor='events')
+    return run(_counted(node_class, consumer == 'attitude_gyro'), args=[sys.argv[0]],
+               executor='events')
 
 
 # -- parent: the measurement ----------------------------------------------------------------
@@ -232,7 +240,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--rates', type=float, nargs='+',
                         default=[100.0, 400.0, 800.0, 1600.0, 3200.0])
-    consumers = ('passthrough', 'attitude', 'calibration')
+    consumers = ('passthrough', 'attitude', 'attitude_gyro', 'calibration')
     parser.add_argument('--consumers', nargs='+', default=list(consumers), choices=consumers)
     parser.add_argument('--executors', nargs='+', default=list(EXECUTORS), choices=EXECUTORS)
     parser.add_argument('--seconds', type=float, default=10.0, help='measurement window')

@@ -114,6 +114,13 @@ def _write_poses(path):
     write_poses_csv(path, PoseStream(t, np.column_stack([t, t * 0, t * 0]), quat))
 
 
+def _write_odometry(path):
+    rows = ['t,v,yaw_rate'] + [f'{0.02 * k:.2f},{5.0 + 0.1 * k:.3f},{0.01 * k:.3f}'
+                               for k in range(8)]
+    with open(path, 'w') as handle:
+        handle.write('\n'.join(rows) + '\n')
+
+
 def _write_imu(path):
     from accelcal_ros.lidar.imu_log import ImuLog, write_imu_csv
 
@@ -222,6 +229,8 @@ READERS = {
                   lambda p: _function('accelcal_ros.lidar.poses:read_poses_csv')(p)),
     'trajectory_csv': ('traj.csv', _write_trajectory, lambda p: _function(
         'accelcal_ros.lidar.geotraj:read_trajectory_csv')(p)),
+    'odometry_csv': ('odo.csv', _write_odometry, lambda p: _function(
+        'accelcal_ros.sensor.tilt_series:read_odometry_csv')(p)),
     'imu_log_csv': ('imu.csv', _write_imu,
                     lambda p: _function('accelcal_ros.lidar.imu_log:read_imu_csv')(p)),
     'pcd_ascii': ('a.pcd', _pcd_writer('ascii'), _read_pcd),

@@ -24,7 +24,7 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='sample rates in Hz (default 100)')
     p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
     p.add_argument('--no-anchors', action='store_true', help='skip imufusion and ahrs')
-    p.add_argument('--drive-out', help='also write the (first rate\'s) drive as a CSV '
+    p.add_argument('--drive-out', help="also write the (first rate's) drive as a CSV "
                    'recording t,ax,ay,az,gx,gy,gz (s, m/s^2, rad/s)')
     p.add_argument('--odometry-out', help='also write its odometry as CSV t,v,yaw_rate')
     p.set_defaults(handler=_study)
@@ -35,6 +35,11 @@ def _study(args):
 
     status = 0
     for rate in args.rates:
+        jitter = study.still_jitter(rate, seed=args.seed)
+        print(f'Still rig at {rate:g} Hz, accelerometer only, defaults: horizon jitter between '
+              f'25 fps frames {jitter["filter"]:.2f} px rms at f = {study.FOCAL_PX:g} px '
+              f'(one raw sample per frame: {jitter["one sample"]:.2f} px; target <= 0.5: '
+              f'{"meets" if jitter["filter"] <= 0.5 else "MISSES"})')
         rows = study.run_study(rate_hz=rate, seed=args.seed, anchors=not args.no_anchors)
         for line in study.format_rows(rows, rate):
             print(line)

@@ -55,7 +55,8 @@ ATTITUDE_PARAMS = (
               'of still_time_constant_s / moving_time_constant_s, with the gyro and odometry '
               'aids when present).', minimum=0.0, maximum=60.0, unit='s'),
     ParamSpec('still_time_constant_s', _FILTER.still_time_constant_s, 'Longest averaging '
-              'while the stillness detector says still (noise 0.013 deg at 1 s).',
+              'while the stillness detector says still (a line, then a double low-pass: no '
+              'lag behind a slow creep; noise 0.015 deg at 2 s).',
               minimum=0.01, maximum=60.0, unit='s'),
     ParamSpec('moving_time_constant_s', _FILTER.moving_time_constant_s, 'Low-pass while '
               'moving (double low-pass: no lag behind a steady turn; about this lag while '

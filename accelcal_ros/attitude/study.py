@@ -14,6 +14,10 @@ estimator sees the same samples:
   rejection 10 deg, NWU), ``Mahony`` and ``Madgwick`` (``ahrs``, default gains). A
   missing package is reported as a skipped row with the reason.
 
+Still rig (:func:`still_jitter`): the horizon's jitter between successive 25 fps frames
+(rms of the change of roll and pitch from one frame to the next, in px at f = 1100 px),
+for one raw sample per frame and for the filter's defaults.
+
 Error: the angle between the true and the estimated "up" direction (deg), per sample,
 after the first 2 s; p50/p95/max, and the roll and pitch p95. ``horizon_px``: the p95
 error as the horizon's displacement in a panorama with f = 1100 px (``f * tan(err)``).
@@ -22,9 +26,10 @@ import math
 from typing import Callable, Dict, List, Optional, Tuple
 
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
-from accelcal_ros.sensor.drive_sim import Drive, DRIVE_SEGMENTS, simulate_drive
+from accelcal_ros.sensor.drive_sim import Drive, DRIVE_SEGMENTS, simulate_drive, still_readings
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.odometry_aid import accel_series_g
+from accelcal_ros.sensor.tilt import TiltEstimator
 from accelcal_ros.sensor.tilt_filter import AttitudeFilter, FilterSettings
 import numpy as np
 
@@ -189,3 +194,18 @@ def check_targets(rows: List[dict]) -> List[str]:
         lines.append(f'Target + odometry: p95 <= 1 deg: {odo["p95_deg"]:.3f} '
                      f'({"meets" if odo["p95_deg"] <= 1.0 else "MISSES"})')
     return lines
+
+
+def still_jitter(rate_hz: float, seconds: float = 30.0, seed: int = 0) -> Dict[str, float]:
+    """Return the 25 fps horizon jitter (px rms) of a still rig: one sample vs the filter."""
+    t, raw = still_readings(rate_hz, seconds, seed=seed)
+    noise = tuple(datasheet_noise_std_g(rate_hz).tolist())
+    frames = np.searchsorted(t, np.arange(3.0, t[-1], 0.04))
+    out = {}
+    for name, estimator in (('one sample', TiltEstimator(None, noise)),
+                            ('filter', AttitudeFilter(None, noise))):
+        est = [estimator.update(ti, ai) for ti, ai in zip(t.tolist(), raw.tolist())]
+        rp = np.array([[est[k].roll, est[k].pitch] for k in frames])
+        step = np.diff(rp, axis=0)
+        out[name] = float(FOCAL_PX * np.sqrt(np.mean(np.sum(step ** 2, axis=1))))
+    return out

@@ -67,8 +67,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--platform-accel-g', type=float_in(0.0, 1.0), default=0.0,
                    help='steady acceleration the platform may have (g; default 0): '
                         'accelerometer only, the std columns include the tilt it could fake')
-    p.add_argument('--still-time-constant-s', type=float_in(0.01, 60.0), default=1.0,
-                   help='longest averaging while still (default 1 s)')
+    p.add_argument('--still-time-constant-s', type=float_in(0.01, 60.0), default=2.0,
+                   help='longest averaging while still (default 2 s)')
     p.add_argument('--moving-time-constant-s', type=float_in(0.001, 10.0), default=0.04,
                    help='low-pass while moving (default 0.04 s)')
     p.add_argument('--time-constant-s', type=float_in(0.0, 3600.0), default=0.0,

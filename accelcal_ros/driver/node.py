@@ -16,6 +16,7 @@ DRIVER_PARAMS`.
 import threading
 import time
 
+from accelcal_ros.driver.gyro_source import make_gyro
 from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.rosutil.params import ParameterSet
@@ -44,6 +45,7 @@ class ImuDriverNode(Node):
         if getattr(self.source, 'rate_warning', ''):
             self.get_logger().warning(self.source.rate_warning + ' (running anyway: '
                                       'allow_unsustainable_rate is true)')
+        self.gyro = make_gyro(self.params.values, self.source)   # None: no gyro
         backend = self.params['backend']
         self.imu_pub = self.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
         self.truth_pub = (self.create_publisher(Vector3Stamped, 'sim/attitude_truth',
@@ -93,6 +95,15 @@ class ImuDriverNode(Node):
         imu, truth = self._imu, self._truth
         imu.header.frame_id = truth.header.frame_id = self.params['frame_id']
         stamp, a = imu.header.stamp, imu.linear_acceleration
+        if self.gyro is not None:   # the ITG-3205's newest sample for the whole batch
+            rate = self.gyro.read()
+            cov = imu.angular_velocity_covariance
+            if rate is None:
+                cov[0] = -1.0
+            else:
+                w = imu.angular_velocity
+                w.x, w.y, w.z = rate
+                cov[0] = cov[4] = cov[8] = self.gyro.variance
         publish = self.imu_pub.publish
         accel = (batch.samples_g * STANDARD_GRAVITY_M_S2).tolist()
         stamps_ns = (batch.stamps * 1e9).astype(np.int64).tolist()
@@ -139,6 +150,10 @@ class ImuDriverNode(Node):
         if stats.measured_rate_hz == stats.measured_rate_hz:   # not NaN: FIFO reads
             values['output_data_rate_hz_measured'] = f'{stats.measured_rate_hz:.2f}'
             values['fifo_stamp_resyncs'] = str(stats.stamp_resyncs)
+        if self.gyro is not None:
+            values.update({'gyro': 'itg3205', 'gyro_rate_hz': f'{self.gyro.rate_hz:g}',
+                           'gyro_errors': str(self.gyro.errors),
+                           'gyro_saturated': str(self.gyro.saturated)})
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()

@@ -112,6 +112,12 @@ DRIVER_PARAMS = (
     ParamSpec('replay.file', '', 'CSV recording to publish (backend replay).', read_only=True),
     ParamSpec('replay.realtime', True, 'Replay with the recorded timing (false: as fast as '
               'possible).', read_only=True),
+    ParamSpec('gyro', 'none', "Gyro beside the ADXL345: none, or itg3205 (the GY-85 board's "
+              'ITG-3205 on the same I2C bus; simulated with the sim backend): angular velocity '
+              'and its covariance in imu/data_raw.', choices=('none', 'itg3205'),
+              read_only=True),
+    ParamSpec('gyro_i2c_address', 0x68, 'ITG-3205 I2C address: 0x68 (104, GY-85) or 0x69 '
+              '(105).', choices=(0x68, 0x69), read_only=True),
     ParamSpec('diagnostics_period_s', 1.0, 'Period of /diagnostics messages.', minimum=0.1,
               maximum=60.0, unit='s'),
 )

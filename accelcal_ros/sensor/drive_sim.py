@@ -177,3 +177,15 @@ def simulate_drive(rate_hz: float = 100.0, seed: int = 0,
         * noise_scale
     return Drive(t, roll, pitch, raw, gyro, odo_t, odo_speed, odo_yaw, segment,
                  (float(p[0]), float(p[1]), float(p[2])), float(rate_hz))
+
+
+def still_readings(rate_hz: float, seconds: float, roll: float = 0.07, pitch: float = -0.12,
+                   seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+    """Return ``(t, readings g (N, 3))`` of a still, calibrated ADXL345 (datasheet noise)."""
+    from accelcal_ros.frames import specific_force_from_roll_pitch
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate_hz)
+    force = np.tile(specific_force_from_roll_pitch(roll, pitch), (t.size, 1))
+    raw = force + rng.standard_normal(force.shape) * datasheet_noise_std_g(rate_hz)
+    return t, np.round(raw / FULL_RES_G_PER_LSB) * FULL_RES_G_PER_LSB

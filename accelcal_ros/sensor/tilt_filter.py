@@ -10,7 +10,8 @@ honest covariance. Calibration, impossible samples and the angle equations are t
 
 **Accelerometer only: averaging adapted to stillness.** The specific force ``f`` (minus
 the platform acceleration when given) feeds :class:`~accelcal_ros.sensor.stillness.
-StillnessDetector` (its default thresholds) and two averages:
+StillnessDetector` (its default thresholds; with a known gyro bias a mean rate below
+0.01 rad/s) and two averages:
 
 * *fast*: a first-order low-pass ``f_fast += a (f - f_fast)``, ``a = 1 - exp(-dt /
   moving_time_constant_s)`` (0.04 s: one 25 fps frame). The output while moving is the
@@ -18,19 +19,21 @@ StillnessDetector` (its default thresholds) and two averages:
   (a first-order low-pass lags by its time constant), a lag of about
   ``moving_time_constant_s`` only while the turn rate changes, and 1.6 times the
   low-pass's noise (0.08 deg at 100 Hz, 0.13 deg at 800 Hz).
-* *still*: while the detector says still, a mean that grows from the fast average's
-  effective count ``(2 - a) / a`` up to an exponential memory of
-  ``still_time_constant_s`` (1 s); the output while still. Its noise is that of a mean
-  over up to ``still_time_constant_s``: 0.013 deg at 100 Hz, 0.014 deg at 800 Hz with the
-  datasheet noise. A change that the detector has not yet seen (the first 20-60 ms of a
-  motion, a slow creep) is caught when ``|f_fast - f_still|`` exceeds ``jump_sigma``
-  standard deviations of the fast average on an axis (0.3-0.5 deg): the still mean
-  is dropped and the moving output is used for one detector window (0.3 s). So while
-  still the estimate lags a slow creep by at most that threshold.
+* *still*: while the detector says still, the least-squares line through the samples
+  since the (re)start, evaluated now, and once it spans ``still_time_constant_s`` (2 s)
+  the double low-pass ``2 S - LP(S)`` of that time constant, seeded with the line's level
+  and slope. Neither lags behind a slow creep the detector takes for stillness (a turn of
+  2 deg/s passes its thresholds): 0.03 deg p95 at 0.5 deg/s. Noise: 0.015 deg at 100 and
+  800 Hz with the datasheet noise. Cost: after a motion stops, the slope it left in the
+  line decays within about twice the time constant (0.07-0.1 deg p95 in the 2 s after a
+  stop). A change that the detector has not yet seen (the first 20-60 ms of a motion) is
+  caught when the moving output and the still average differ by more than ``jump_sigma``
+  standard deviations of the moving output on an axis (0.3-0.5 deg): the still average
+  is dropped and the moving output is used for one detector window (0.3 s).
 
 Covariance: the noise propagated as in :class:`TiltEstimator`, times the variance ratio
-of the average (``1 / (2 n - 1)`` for a mean of n samples, ``a / (2 - a)`` for the
-low-pass), plus the calibration's ``tilt_std_rad^2``.
+of the average (``(4 n - 2) / (n (n + 1))`` for the end of a line through n samples, the
+double low-pass's sum of squared weights), plus the calibration's ``tilt_std_rad^2``.
 
 **Honest when blind.** The accelerometer cannot tell gravity from a steady acceleration.
 While moving without an aid, the variance gains ``max(asin(| |f| - 1 |), atan(s))^2``
@@ -38,8 +41,9 @@ with ``s`` the detector's spread of 20 ms means (g): the tilt that the motion se
 fake. On a platform that may accelerate steadily (``platform_accel_g`` > 0: a vehicle, a
 mast on a ship) a steady turn looks still, so the variance gains
 ``atan(platform_accel_g)^2`` on every sample unless odometry or a gyro is used;
-:attr:`AttitudeFilter.mode` says which case applies. ``| |f| - 1 |`` above
-``accel_threshold_g`` holds the last good tilt (at most ``max_hold_s``), as
+:attr:`AttitudeFilter.mode` says which case applies. ``| |f_fast| - 1 |`` above
+``accel_threshold_g`` (calibrated sensors only; single samples at 800 Hz would cross
+0.05 g by noise) holds the last good tilt (at most ``max_hold_s``), as
 :class:`TiltEstimator` does.
 
 **Gyro-aided (complementary filter on the gravity direction).** With angular velocity
@@ -76,15 +80,14 @@ accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them by reason.
 Cost: plain floats per sample (no numpy), as :class:`TiltEstimator`.
 """
 from collections import deque
-from dataclasses import dataclass, fields
 import math
 from typing import Deque, Dict, Optional, Sequence, Tuple
 
-from accelcal_ros.errors import InputError
 from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
+from accelcal_ros.sensor.tilt_settings import dema_variance_ratio, FilterSettings, low_pass_gain
 
 GYRO_HOLD_S = 0.1
 """A bad or missing gyro sample is bridged with the last good rate for at most this (s)."""
@@ -119,64 +122,6 @@ MODE_GYRO = 'gyro-aided'
 MODE_GYRO_BAD = 'gyro samples unusable (NaN or saturated): accelerometer only'
 MODE_GYRO_WAIT = 'gyro present: waiting for a still moment to learn its bias ' \
                  '(accelerometer only until then)'
-
-
-@dataclass(frozen=True)
-class FilterSettings:
-    """Every setting of :class:`AttitudeFilter` (see the module docstring)."""
-
-    still_time_constant_s: float = 1.0
-    """Longest memory of the average while still (s)."""
-    moving_time_constant_s: float = 0.04
-    """Time constant of the low-pass used while moving (s): its lag."""
-    jump_sigma: float = 5.0
-    """A still average further than this many standard deviations of the fast one restarts."""
-    gyro_time_constant_s: float = 5.0
-    """Complementary filter: time constant of the pull towards the accelerometer (s)."""
-    rejection_deg: float = 2.0
-    """Innovation beyond which the accelerometer is ignored (the platform accelerates; deg)."""
-    rejection_timeout_s: float = 20.0
-    """Longest time the accelerometer is ignored before it is trusted again (s)."""
-    bias_time_constant_s: float = 1.0
-    """Memory of the gyro bias estimate while still (s)."""
-    gyro_noise_std_rad_s: float = 0.0066
-    """Gyro noise per sample (rad/s; ITG-3205: 0.38 deg/s rms)."""
-    gyro_bias_drift_rad_s2: float = 2.0e-4
-    """Growth of the gyro bias uncertainty away from stillness (rad/s per s)."""
-    gyro_saturation_rad_s: float = 34.9
-    """A rate at or beyond this on an axis is saturated (rad/s; ITG-3205: 2000 deg/s)."""
-    platform_accel_g: float = 0.0
-    """Steady acceleration the platform may have (g; 0: the rig does not ride a vehicle)."""
-    odometry_accel_std_g: float = 0.02
-    """Uncertainty of the platform acceleration derived from odometry (g)."""
-
-    def check(self) -> None:
-        """Raise InputError naming the first setting out of its range."""
-        zero_ok = ('platform_accel_g', 'gyro_bias_drift_rad_s2', 'odometry_accel_std_g',
-                   'gyro_noise_std_rad_s')
-        for item in fields(self):
-            value = getattr(self, item.name)
-            ok = isinstance(value, (int, float)) and math.isfinite(value) and (
-                value >= 0.0 if item.name in zero_ok else value > 0.0)
-            if not ok:
-                kind = 'non-negative' if item.name in zero_ok else 'positive'
-                raise InputError(f'attitude filter setting {item.name} must be a {kind} '
-                                 f'number, got {value!r}')
-        if self.platform_accel_g > 1.0:
-            raise InputError('platform_accel_g must be at most 1 g, got '
-                             f'{self.platform_accel_g!r}')
-
-
-def _alpha(dt: float, tau: float) -> float:
-    return 1.0 - math.exp(-dt / tau) if dt > 0.0 else 0.0
-
-
-def _dema_variance_ratio(a: float) -> float:
-    """Return sum(h^2) of the double-EMA ``2 EMA - EMA(EMA)`` of white noise, gain ``a``."""
-    if a >= 1.0:
-        return 1.0
-    q = 1.0 - (1.0 - a) ** 2
-    return 4.0 * a * a / q - 4.0 * a ** 3 / q ** 2 + a ** 4 * (2.0 - q) / q ** 3
 
 
 class AttitudeFilter:
@@ -227,8 +172,7 @@ class AttitudeFilter:
         self._fast: Optional[Tuple[float, float, float]] = None
         self._fast_n = 0
         self._fast2: Optional[Tuple[float, float, float]] = None
-        self._still: Optional[Tuple[float, float, float]] = None
-        self._still_n = 0.0
+        self._still: Optional[list] = None
         self._moving_until = -math.inf
         self._held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
         self._hold_start: Optional[float] = None
@@ -312,7 +256,7 @@ class AttitudeFilter:
                              and not platform_moving
                              and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
         # the fast and the still averages (always: the fallback and the still output)
-        a_fast = _alpha(dt, settings.moving_time_constant_s)
+        a_fast = low_pass_gain(dt, settings.moving_time_constant_s)
         fast = self._fast
         self._fast_n += 1
         if fast is None:
@@ -332,16 +276,16 @@ class AttitudeFilter:
         # would cross 0.05 g every few seconds
         deviation = abs(math.sqrt(fast[0] ** 2 + fast[1] ** 2 + fast[2] ** 2) - 1.0)
         accelerating = deviation > tilt.accel_threshold_g
+        # uncalibrated, |f| reads 0.85-1.15 g at rest: the magnitude proves nothing
+        blocks = accelerating and tilt.calibrated
         a_eff = max(a_fast, 1.0 / self._fast_n) if self._fast_n > 1 else 1.0
-        n_fast = (2.0 - a_eff) / a_eff
-        shrink_fast = a_eff / (2.0 - a_eff)
-        if still and not accelerating and stamp >= self._moving_until:
-            out, shrink = self._still_average(fast, (fx, fy, fz), dt, n_fast, shrink_fast)
-        if self._still is None or not still or accelerating or stamp < self._moving_until:
-            # moving: 2 EMA - EMA(EMA), no lag behind a steady turn of the sensor
+        # moving: 2 EMA - EMA(EMA), no lag behind a steady turn of the sensor
+        out = (2.0 * fast[0] - slow[0], 2.0 * fast[1] - slow[1], 2.0 * fast[2] - slow[2])
+        shrink = dema_variance_ratio(a_eff)
+        if still and not blocks and stamp >= self._moving_until:
+            out, shrink = self._still_average(fast, out, (fx, fy, fz), stamp, dt, shrink)
+        else:
             self._still = None
-            out = (2.0 * fast[0] - slow[0], 2.0 * fast[1] - slow[1], 2.0 * fast[2] - slow[2])
-            shrink = _dema_variance_ratio(a_eff)
         if gyro is not None and bias_known:
             return self._gyro_update(stamp, dt, gyro, (fx, fy, fz), magnitude, accelerating,
                                      aided_by_odometry, out, shrink, platform_moving,
@@ -408,8 +352,8 @@ class AttitudeFilter:
         t_start, t_end, gx, gy, gz = item
         self._bias_blocks += 1
         beta = max(1.0 / self._bias_blocks,
-                   _alpha(max(t_end - t_start, self.detector.thresholds.block_s),
-                          self.settings.bias_time_constant_s))
+                   low_pass_gain(max(t_end - t_start, self.detector.thresholds.block_s),
+                                 self.settings.bias_time_constant_s))
         b = self._bias
         self._bias = (b[0] + beta * (gx - b[0]), b[1] + beta * (gy - b[1]),
                       b[2] + beta * (gz - b[2]))
@@ -417,31 +361,72 @@ class AttitudeFilter:
             beta / (2.0 - beta) / max(1.0, (t_end - t_start) * 100.0))
         self._bias_time = t_end
 
-    def _still_average(self, fast, force, dt, n_fast, shrink_fast):
-        """Return (average, variance ratio) of the still mean, restarting it on a jump."""
-        still = self._still
+    def _still_average(self, fast, dema, force, stamp, dt, shrink_dema):
+        """
+        Return (average, variance ratio) while still, restarting on a jump.
+
+        From a (re)start the average is the least-squares line through the samples so far,
+        evaluated now; once that spans ``still_time_constant_s`` it goes on as the double
+        low-pass ``2 S - LP(S)`` of that time constant, seeded with the line's level and
+        slope. Neither lags behind a slow creep that the detector takes for stillness.
+        """
+        state = self._still
         cov = self.tilt.force_covariance_list_g2
-        if still is not None:
+        if state is not None:
             limit = self.settings.jump_sigma
+            out = state[0]
             for k, var in enumerate((cov[0], cov[4], cov[8])):
-                if abs(fast[k] - still[k]) > limit * math.sqrt(var * shrink_fast) + 5e-4:
+                if abs(dema[k] - out[k]) > limit * math.sqrt(var * shrink_dema) + 5e-4:
                     # a motion the detector has not seen yet: moving for one window
                     self.jumps += 1
                     self._still = None
-                    self._moving_until = self._last_t + self.detector.thresholds.window_s
-                    return fast, shrink_fast
-        if still is None:
-            self._still, self._still_n = fast, n_fast
-            return fast, shrink_fast
-        n = self._still_n + 1.0
-        self._still_n = n
-        a = max(1.0 / n, _alpha(dt, self.settings.still_time_constant_s))
+                    self._moving_until = stamp + self.detector.thresholds.window_s
+                    return dema, shrink_dema
+        if state is None:
+            # sums of the regression: n, t, t^2, then per axis y and t*y (t from now)
+            state = self._still = [dema, 'line', stamp, [0.0, 0.0, 0.0],
+                                   [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]
+        a = low_pass_gain(dt, self.settings.still_time_constant_s)
         fx, fy, fz = force
-        still = (still[0] + a * (fx - still[0]), still[1] + a * (fy - still[1]),
-                 still[2] + a * (fz - still[2]))
-        self._still = still
-        shrink = 1.0 / (2.0 * n - 1.0) if a * n <= 1.0 + 1e-12 else a / (2.0 - a)
-        return still, shrink
+        if state[1] == 'line':
+            sums = state[4]
+            t = stamp - state[2]
+            sums[0] += 1.0
+            sums[1] += t
+            sums[2] += t * t
+            sums[3] += fx
+            sums[4] += fy
+            sums[5] += fz
+            n = sums[0]
+            ty = state[3]
+            ty[0] += t * fx
+            ty[1] += t * fy
+            ty[2] += t * fz
+            den = n * sums[2] - sums[1] * sums[1]
+            if n < 8 or den <= 1e-18:
+                return dema, shrink_dema
+            mean_t = sums[1] / n
+            level, slope = [], []
+            for k in range(3):
+                m = (n * ty[k] - sums[1] * sums[3 + k]) / den
+                slope.append(m)
+                level.append(sums[3 + k] / n + m * (t - mean_t))
+            out = (level[0], level[1], level[2])
+            state[0] = out
+            shrink = (4.0 * n - 2.0) / (n * (n + 1.0))
+            if a > 0.0 and 1.0 / n < a:   # the line spans the time constant: go on as 2S - S2
+                d = [m * dt * (1.0 - a) / a for m in slope]
+                state[1] = 'holt'
+                state[3] = [level[k] - d[k] for k in range(3)]
+                state[4] = [level[k] - 2.0 * d[k] for k in range(3)]
+            return out, shrink
+        s1, s2 = state[3], state[4]
+        for k, y in enumerate((fx, fy, fz)):
+            s1[k] += a * (y - s1[k])
+            s2[k] += a * (s1[k] - s2[k])
+        out = (2.0 * s1[0] - s2[0], 2.0 * s1[1] - s2[1], 2.0 * s1[2] - s2[2])
+        state[0] = out
+        return out, dema_variance_ratio(a)
 
     def _accel_output(self, stamp, force, magnitude, deviation, accelerating, still, out,
                       shrink, aided_by_odometry, mode):
@@ -510,12 +495,13 @@ class AttitudeFilter:
             vx, vy, vz = (vx + dt * (vy * wz - vz * wy), vy + dt * (vz * wx - vx * wz),
                           vz + dt * (vx * wy - vy * wx))
             ex, ey, ez = ux - vx, uy - vy, uz - vz
-            a_inn = _alpha(dt, INNOVATION_TIME_CONSTANT_S)
+            a_inn = low_pass_gain(dt, INNOVATION_TIME_CONSTANT_S)
             ix, iy, iz = self._innovation
             ix, iy, iz = ix + a_inn * (ex - ix), iy + a_inn * (ey - iy), iz + a_inn * (ez - iz)
             self._innovation = (ix, iy, iz)
             innovation = math.sqrt(ix * ix + iy * iy + iz * iz)
-            reject = accelerating or innovation > math.radians(settings.rejection_deg)
+            reject = (accelerating and self.tilt.calibrated) \
+                or innovation > math.radians(settings.rejection_deg)
             k_fast = 0.0
             if reject:
                 since = self._reject_since
@@ -526,12 +512,12 @@ class AttitudeFilter:
                 if stamp - since > settings.rejection_timeout_s or (
                         self.detector.still and stamp - since > still_for):
                     reject = False   # trusted again: fast while still (stopped after a drift)
-                    k_fast = _alpha(dt, STILL_RECOVERY_TIME_CONSTANT_S) \
+                    k_fast = low_pass_gain(dt, STILL_RECOVERY_TIME_CONSTANT_S) \
                         if self.detector.still else 0.0
             else:
                 self._reject_since = None
             self._up_n += 1
-            k = 0.0 if reject else max(_alpha(dt, settings.gyro_time_constant_s), k_fast,
+            k = 0.0 if reject else max(low_pass_gain(dt, settings.gyro_time_constant_s), k_fast,
                                        1.0 / self._up_n if self._up_n < 100 else 0.0)
             if k > 0.0 and not still and self._up_n >= 100:
                 # Mahony's integral term: a steady innovation is a bias error

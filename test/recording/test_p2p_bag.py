@@ -32,9 +32,10 @@ def _write(path, fmt, frames=6):
             rotation, translation = pose_from_camera_attitude(roll, pitch, yaw, position,
                                                               DEFAULT_IMU_TO_CAMERA)
             image, _, _ = render_emitters(EMITTERS, rotation, translation, camera, seed=k)
-            for j in range(-4, 5):   # IMU at 50 Hz around the frame, attitude at its stamp
+            for j in range(-5, 5):   # IMU at 50 Hz, roll turning steadily (0.5 deg/frame)
                 t_imu = ns + j * 20_000_000
-                force = specific_force_from_roll_pitch(roll, pitch) * 9.80665
+                roll_imu = roll + np.radians(0.5) * j / 10.0
+                force = specific_force_from_roll_pitch(roll_imu, pitch) * 9.80665
                 writer.write('/imu/data_raw', t_imu, writer.imu_message(t_imu, force, 'imu'))
             writer.write('/attitude', ns, writer.vector3_stamped_message(ns, (roll, pitch, 0.0),
                                                                          'imu'))

@@ -36,9 +36,10 @@ def recording(tmp_path_factory):
         for k in range(FRAMES):
             ns = T0_NS + k * 100_000_000
             roll, pitch = _attitude(k)
-            for j in range(-2, 3):
+            for j in range(-25 if k == 0 else -2, 3):   # IMU at 50 Hz, swinging steadily
                 t_imu = ns + j * 20_000_000
-                force = specific_force_from_roll_pitch(roll, pitch) * 9.80665
+                roll_imu, pitch_imu = _attitude(k + j / 5.0)
+                force = specific_force_from_roll_pitch(roll_imu, pitch_imu) * 9.80665
                 writer.write('/imu/data_raw', t_imu, writer.imu_message(t_imu, force, 'imu'))
             writer.write('/attitude', ns, writer.vector3_stamped_message(ns, (roll, pitch, 0),
                                                                          'imu'))

@@ -61,7 +61,7 @@ def test_still_rig_defaults_are_steady_to_half_a_pixel(rate):
     assert 0.5 < scatter / stated < 2.0
 
 
-def test_motion_costs_little_lag_and_stillness_returns_fast():
+def test_motion_costs_little_lag_and_a_slow_creep_none():
     rate = 100.0
     sim = SimulatedAdxl345(rate_hz=rate, poses_deg=[[0, 0], [10, -5], [30, 20], [-20, 40]],
                            dwell_s=3.0, move_s=1.0, seed=2)
@@ -70,10 +70,20 @@ def test_motion_costs_little_lag_and_stillness_returns_fast():
     est = _run(AttitudeFilter(sim.truth, datasheet_noise_std_g(rate)), t, raw)
     err = np.degrees(np.hypot([e.roll for e in est] - roll, [e.pitch for e in est] - pitch))
     moving = sim.pose_index(t) < 0
-    settled = (~moving) & (np.mod(t, sim.period_s) > 0.5)
+    settled = (~moving) & (np.mod(t, sim.period_s) > 2.0)
     # turns of up to 60 deg/s: the double low-pass keeps up (a 0.04 s low-pass lags 2.4 deg)
     assert np.percentile(err[moving], 95) < 0.8
-    assert np.percentile(err[settled], 95) < 0.06
+    assert np.percentile(err[settled], 95) < 0.1   # the still trend settles within ~2 tau
+    # a creep of 1 deg/s passes the stillness detector: the still average follows it
+    t = np.arange(0.0, 20.0, 1.0 / rate)
+    truth = np.radians(1.0) * t
+    rng = np.random.default_rng(5)
+    raw = specific_force_from_roll_pitch(truth, np.full(t.size, -0.1)) \
+        + rng.standard_normal((t.size, 3)) * datasheet_noise_std_g(rate)
+    filt = AttitudeFilter(None, datasheet_noise_std_g(rate))
+    est = _run(filt, t, raw)
+    err = np.degrees(np.abs([e.roll for e in est] - truth))[t > 3.0]
+    assert np.percentile(err, 95) < 0.08
 
 
 def _drive_errors(drive, estimates):
