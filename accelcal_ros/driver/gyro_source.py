@@ -81,7 +81,8 @@ def make_gyro(values: Mapping[str, Any], source: Any) -> Optional[GyroReader]:
         from accelcal_ros.driver.itg3205_sim import SimulatedItg3205Bus
         import time
 
-        sensor = source.sensor
+        # the sample-level simulator, or the one behind the register-level chip (sim.bus)
+        sensor = source.sensor if hasattr(source, 'sensor') else source.sim_chip.source
         start = time.time()
         bus = SimulatedItg3205Bus(_body_rates(sensor), address, SIM_BIAS_RAD_S,
                                   (1.01, 0.99, 1.005),
