@@ -8,7 +8,7 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 from typing import Any, Dict, Optional
 
 from accelcal_ros.lidar.capture import CaptureSettings
-from accelcal_ros.outputs import default_output, output_validator
+from accelcal_ros.outputs import default_output, output_path_problem, output_validator
 from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.session_interface import status_period_spec
 
@@ -22,6 +22,10 @@ CAPTURE_FIELDS = {
     'clouds_per_capture': 'clouds_per_capture',
 }
 """Parameter name -> :class:`CaptureSettings` field (defaults come from the dataclass)."""
+
+
+def _cloud_output_ok(value):
+    return output_path_problem(value, ('.ply', '.pcd')) if value else None
 
 
 def _rpy_ok(value):
@@ -81,7 +85,7 @@ CLOUD_ASSEMBLER_PARAMS = (
               read_only=True),
     ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
     ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply or .pcd; '
-              'empty = none)'),
+              'empty = none)', validator=_cloud_output_ok),
     ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
               minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,

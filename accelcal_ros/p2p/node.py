@@ -27,6 +27,7 @@ from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
 from accelcal_ros.rosutil.dds import use_large_message_profile
+from accelcal_ros.rosutil.diagnostics import PeriodicTimer
 from accelcal_ros.rosutil.images import image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
@@ -78,7 +79,8 @@ class P2PNode(Node):
         self._logged_reason = None
         self._last_quality = {}
         self._last_result = None
-        self.create_timer(self.params['diagnostics_period_s'], self._publish_diagnostics)
+        self._diag_timer = PeriodicTimer(self, self.params['diagnostics_period_s'],
+                                         self._publish_diagnostics)
         self.get_logger().info(
             f'p2p: emitters M1 {self.pipeline.points[0].tolist()} M2 '
             f'{self.pipeline.points[1].tolist()} m; waiting for {self._topic("image")}, '
@@ -88,6 +90,8 @@ class P2PNode(Node):
         return self.resolve_topic_name(name)
 
     def _on_change(self, name, value):
+        if name == 'diagnostics_period_s':
+            self._diag_timer.set_period(value)
         with self._lock:
             self.pipeline.configure({name: value})
         if name == 'order' or name == 'emitters':
