@@ -379,7 +379,7 @@ def graph_config(config, duration, warmup, workdir, size=''):
 
 
 def _figure(value):
-    """A figure as a table shows it: 2 decimals (3 significant digits below 1)."""
+    """Return a figure as a table shows it: 2 decimals (3 significant digits below 1)."""
     if isinstance(value, float):
         return f'{value:.3g}' if abs(value) < 1.0 else f'{value:.2f}'
     return str(value)
@@ -402,8 +402,8 @@ def report(config, results, target_fps=None, ratio=0.9, what='panoramas', durati
     widths = [max(len(k), 8) + 2 for k in keys]
     print(f'  {"phase":24s}' + ''.join(f'{k:>{w}s}' for k, w in zip(keys, widths)))
     for label, res in results.items():
-        print(f'  {label:24s}' + ''.join(f'{_figure(res[k]) if k in res else "-":>{w}s}'
-                                        for k, w in zip(keys, widths)))
+        cells = [_figure(res[k]) if k in res else '-' for k in keys]
+        print(f'  {label:24s}' + ''.join(f'{c:>{w}s}' for c, w in zip(cells, widths)))
         if 'error' in res:
             print(f'  {"":24s}error: {res["error"]}')
     if 'per_s' not in node or 'sets_per_s' not in floor:
