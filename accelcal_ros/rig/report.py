@@ -139,7 +139,7 @@ def write_outputs(path: str, result: RigCalibration) -> List[str]:
 
 
 def _warning_text(warnings: List[str], width: int, most: int = 8) -> str:
-    """Return the warnings wrapped to ``width`` characters (the panel's), at most ``most`` of them."""
+    """Return the warnings wrapped to ``width`` characters, at most ``most`` of them."""
     lines = []
     for warning in warnings[:most]:
         lines += textwrap.wrap(warning, width, initial_indent='- ', subsequent_indent='  ')
