@@ -16,6 +16,7 @@ import argparse
 import os
 import random
 import shutil
+import sys
 import tempfile
 import time
 
@@ -120,10 +121,15 @@ def main():
     parser.add_argument('--repeat', type=int, default=20)
     parser.add_argument('--no-graph', action='store_true', help='fit times only')
     args = parser.parse_args()
-    bench_fit(args.repeat)
-    if not args.no_graph:
-        bench_attitude(args.rate, args.seconds)
+    try:
+        bench_fit(args.repeat)
+        if not args.no_graph:
+            bench_attitude(args.rate, args.seconds)
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())
