@@ -15,6 +15,8 @@ Benchmark the calibration fit and the ``attitude`` node.
 import argparse
 import os
 import random
+import shutil
+import sys
 import tempfile
 import time
 
@@ -85,6 +87,7 @@ def bench_attitude(rate, seconds):
         cpu = (cpu_seconds(proc.proc.pid) - cpu0) / (time.monotonic() - wall0)
     finally:
         graph.close()
+        shutil.rmtree(log_dir, ignore_errors=True)
     raw_time = {round(stamp_to_seconds(m.header.stamp), 6): r for m, r in zip(raw_msgs, raw_rx)}
     hop, end_to_end = [], []
     for msg, received in zip(att_msgs, att_rx):
@@ -93,13 +96,15 @@ def bench_attitude(rate, seconds):
         if round(stamp, 6) in raw_time:
             hop.append(received - raw_time[round(stamp, 6)])
     hop, end_to_end = np.array(hop) * 1e3, np.array(end_to_end) * 1e3
+    # Samples the driver stamped between the first and the last attitude message received
+    # (the sim driver stamps every 1/rate s), against the distinct ones that came back.
     stamps = np.unique(np.round(np.array([stamp_to_seconds(m.header.stamp)
-                                          for m in raw_msgs]) * rate).astype(np.int64))
+                                          for m in att_msgs]) * rate).astype(np.int64))
     expected = stamps[-1] - stamps[0] + 1 if len(stamps) else 0
     print(f'attitude node at {rate:g} Hz input ({seconds:g} s, {os.cpu_count()} CPUs on this '
           'machine):')
-    print(f'  attitude messages: {len(att_msgs)} of {expected} samples '
-          f'({len(att_msgs) / max(expected, 1) * 100:.1f} %)')
+    print(f'  attitude messages: {len(stamps)} of the {expected} samples stamped between '
+          f'the first and the last received ({len(stamps) / max(expected, 1) * 100:.1f} %)')
     print(f'  added latency (attitude rx - imu/data_raw rx, same stamp): median '
           f'{np.median(hop):.2f} ms, p99 {np.percentile(hop, 99):.2f} ms')
     print(f'  end-to-end latency (attitude rx - sample stamp): median '
@@ -116,10 +121,15 @@ def main():
     parser.add_argument('--repeat', type=int, default=20)
     parser.add_argument('--no-graph', action='store_true', help='fit times only')
     args = parser.parse_args()
-    bench_fit(args.repeat)
-    if not args.no_graph:
-        bench_attitude(args.rate, args.seconds)
+    try:
+        bench_fit(args.repeat)
+        if not args.no_graph:
+            bench_attitude(args.rate, args.seconds)
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -19,6 +19,9 @@ entries for each::
 """
 import argparse
 import os
+import shutil
+import sys
+import tempfile
 import time
 
 from graph_harness.graph import Graph
@@ -149,17 +152,22 @@ def main():
     if args.callbacks:
         callbacks(args.callbacks, args.profile)
         return
-    log_dir = '/tmp/bench_driver'
-    os.makedirs(log_dir, exist_ok=True)
+    log_dir = tempfile.mkdtemp(prefix='bench_driver_')
     print(f'imu_driver sim backend, {args.seconds:g} s per rate, {os.cpu_count()} CPU cores')
     print(f'{"rate Hz":>8} {"achieved":>9} {"ratio":>6} {"received":>9} {"lost":>5} '
           f'{"lat med ms":>10} {"lat p99 ms":>10} {"driver CPU":>10}')
-    for rate in args.rates:
-        r = measure(rate, args.seconds, log_dir)
-        print(f'{r["rate"]:8g} {r["achieved"]:9.1f} {r["achieved"] / rate:6.3f} '
-              f'{r["received"]:9d} {r["lost"]:5d} {r["lat_med"]:10.2f} {r["lat_p99"]:10.2f} '
-              f'{100 * r["cpu"]:9.0f}%', flush=True)
+    try:
+        for rate in args.rates:
+            r = measure(rate, args.seconds, log_dir)
+            print(f'{r["rate"]:8g} {r["achieved"]:9.1f} {r["achieved"] / rate:6.3f} '
+                  f'{r["received"]:9d} {r["lost"]:5d} {r["lat_med"]:10.2f} '
+                  f'{r["lat_p99"]:10.2f} {100 * r["cpu"]:9.0f}%', flush=True)
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+    finally:
+        shutil.rmtree(log_dir, ignore_errors=True)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -82,7 +82,7 @@ def main():
             ('floor (deserialised)', bare_phase(False)), ('floor (raw)', bare_phase(True)),
             ('p2p', node_phase)], args.duration, args.warmup)
         graph_bench.report(f'1x{args.width}x{args.height}@{args.rate:g} mono8', results,
-                           ratio=0.95, what='poses')
+                           ratio=0.95, what='poses', duration_s=args.duration)
     del holder
     return 0
 

@@ -227,6 +227,10 @@ def measure(probe, rate, consumer, executor, seconds, warmup_s, log_dir):
             'driver_us': (dcpu1 - dcpu0) / offered * 1e6}
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def _domain_id():
     try:
         from graph_harness.domain import allocate_domain_id
@@ -255,10 +259,13 @@ def main(argv=None):
     cases = [(c, e) for c in args.consumers
              for e in (['default'] if c == 'passthrough' else args.executors)]
     print(f'{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}; '
-          f'{args.seconds:g} s per case; logs in {log_dir}')
+          f'{args.seconds:g} s per case')
     print(f'{"rate Hz":>8} {"consumer":>12} {"executor":>9} {"delivered %":>12} '
           f'{"CPU us/sample":>14} {"CPU %":>6} {"x floor":>8} {"driver us":>10}')
     probe = Probe()
+    for sig in (signal.SIGINT, signal.SIGTERM):   # after rclpy.init, which takes them over
+        signal.signal(sig, _interrupt)
+    failed = True
     try:
         for rate in args.rates:
             floor = None
@@ -271,8 +278,17 @@ def main(argv=None):
                 print(f'{rate:8g} {consumer:>12} {executor:>9} {r["delivered"] * 100:12.2f} '
                       f'{r["cpu_us"]:14.1f} {r["cpu_percent"]:6.1f} {ratio} '
                       f'{r["driver_us"]:10.1f}', flush=True)
+        failed = False
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        failed = False
+        return 130
     finally:
         probe.close()
+        if failed:
+            print(f'node logs kept in {log_dir}', file=sys.stderr)
+        else:
+            shutil.rmtree(log_dir, ignore_errors=True)
     return 0
 
 

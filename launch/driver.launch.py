@@ -11,7 +11,7 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -28,5 +28,8 @@ def generate_launch_description():
         Node(package='accelcal_ros', executable='imu_driver', name='imu_driver',
              parameters=[LaunchConfiguration('imu_driver_params'),
                          {'backend': LaunchConfiguration('backend')}],
+             on_exit=[Shutdown(reason='imu_driver exited (its FATAL line above says why, e.g. '
+                               'no I2C bus): stopping the launch; use backend:=sim to try '
+                               'without hardware, or driver:=false when a driver runs')],
              output='screen'),
     ])

@@ -7,7 +7,9 @@ Each ``launch/*.launch.py`` is imported with small stand-ins for ``launch``,
 takes ``driver`` (start imu_driver or not), ``backend`` and one ``<node>_params`` file per
 node, defaulting to the installed ``config/<node>.yaml``; every node is an installed
 executable named after it and loads its parameter file first; every parameter set in a
-launch file is one the node declares; every launch argument is used.
+launch file is one the node declares; every launch argument is used; ``driver`` defaults
+to true everywhere and the driver's exit stops the launch (``Shutdown`` with the reason);
+every node executable has a launch file.
 """
 import glob
 import importlib.util
@@ -57,6 +59,10 @@ class Node(_Recorded):
     """Stand-in for launch_ros.actions.Node."""
 
 
+class Shutdown(_Recorded):
+    """Stand-in for launch.actions.Shutdown."""
+
+
 def _stub_modules(monkeypatch):
     def module(name, **attributes):
         mod = types.ModuleType(name)
@@ -64,7 +70,7 @@ def _stub_modules(monkeypatch):
         monkeypatch.setitem(sys.modules, name, mod)
 
     module('launch', LaunchDescription=LaunchDescription)
-    module('launch.actions', DeclareLaunchArgument=DeclareLaunchArgument)
+    module('launch.actions', DeclareLaunchArgument=DeclareLaunchArgument, Shutdown=Shutdown)
     module('launch.substitutions', LaunchConfiguration=LaunchConfiguration)
     module('launch.conditions', IfCondition=IfCondition)
     module('launch_ros')
@@ -105,7 +111,15 @@ def _describe(path, monkeypatch):
 
 def test_there_are_launch_files():
     """The glob below must not silently test nothing."""
-    assert len(LAUNCH_FILES) >= 5
+    assert len(LAUNCH_FILES) >= 6
+
+
+def test_every_node_group_has_a_launch_file(monkeypatch):
+    """Every node executable is started by at least one launch file."""
+    started = set()
+    for path in LAUNCH_FILES:
+        started.update(n.kwargs['executable'] for n in _describe(path, monkeypatch)[1])
+    assert started == set(NODE_PARAMS)
 
 
 @pytest.mark.parametrize('path', LAUNCH_FILES, ids=os.path.basename)
@@ -115,6 +129,7 @@ def test_launch_file_follows_the_convention(path, monkeypatch):
     assert {'driver', 'backend', 'imu_driver_params'} <= set(arguments) or \
         os.path.basename(path) == 'driver.launch.py'
     assert arguments['backend'] == 'i2c'
+    assert arguments.get('driver', 'true') == 'true'   # the same default everywhere
     executables = [n.kwargs['executable'] for n in nodes]
     assert 'imu_driver' in executables
     used = set()
@@ -132,6 +147,9 @@ def test_launch_file_follows_the_convention(path, monkeypatch):
             assert set(overrides) <= declared, (exe, set(overrides) - declared)
         if exe == 'imu_driver':
             assert {'backend': LaunchConfiguration('backend')} in params[1:]
+            # a driver that cannot start (no I2C bus) stops the launch, saying why
+            (stop,) = node.kwargs['on_exit']
+            assert isinstance(stop, Shutdown) and 'imu_driver exited' in stop.kwargs['reason']
             if os.path.basename(path) != 'driver.launch.py':
                 assert node.kwargs['condition'] == IfCondition(LaunchConfiguration('driver'))
         used.update(_configurations(node))

@@ -15,6 +15,10 @@ logic is the pure
 :class:`~accelcal_ros.calibration.session.Calibrator`; parameters:
 :data:`~accelcal_ros.calibration.params.CALIBRATION_PARAMS`.
 
+The session settings (``model``, ``auto_capture``, the still detector's thresholds,
+``min_positions``, ...) are read at ``calibration/start``: a change takes effect at the
+next session. ``status_period_s`` takes effect at once.
+
 ``finish`` applies the new calibration to the running attitude node through its standard
 ``<attitude_node>/set_parameters`` service (asynchronously: the executor never blocks).
 """

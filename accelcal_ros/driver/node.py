@@ -19,6 +19,7 @@ import time
 from accelcal_ros.driver.gyro_source import make_gyro
 from accelcal_ros.driver.params import DRIVER_PARAMS, make_source
 from accelcal_ros.errors import AccelcalError
+from accelcal_ros.rosutil.diagnostics import PeriodicTimer
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
@@ -39,7 +40,7 @@ class ImuDriverNode(Node):
 
     def __init__(self):
         super().__init__('imu_driver')
-        self.params = ParameterSet(self, DRIVER_PARAMS)
+        self.params = ParameterSet(self, DRIVER_PARAMS, self._on_change)
         self.source = make_source(self.params.values)
         self.source.start()
         if getattr(self.source, 'rate_warning', ''):
@@ -68,11 +69,16 @@ class ImuDriverNode(Node):
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._publish_loop, daemon=True)
         self._thread.start()
-        self.create_timer(self.params['diagnostics_period_s'], self._publish_diagnostics)
+        self._diag_timer = PeriodicTimer(self, self.params['diagnostics_period_s'],
+                                         self._publish_diagnostics)
         self.create_service(Trigger, '~/self_test', self._self_test)
         self.get_logger().info(
             f'publishing {backend} ADXL345 at {self.params["rate_hz"]:g} Hz on '
             f'{self.imu_pub.topic_name} (frame {self.params["frame_id"]})')
+
+    def _on_change(self, name, value):
+        if name == 'diagnostics_period_s':
+            self._diag_timer.set_period(value)
 
     def _publish_loop(self):
         source = self.source

@@ -7,8 +7,11 @@ best effort, or reliable with ``points_reliable``) and ``odom`` (nav_msgs/Odomet
 of the IMU body, ``child_frame_id``, in the navigation frame ``header.frame_id``;
 reliable QoS depth 200). Publishes each
 georeferenced scan on ``points_georef`` (PointCloud2 in the navigation frame, fields
-x y z [intensity ring] timestamp). ``cloud_assembler/save`` (std_srvs/Trigger) writes
-the accumulated cloud to ``output_file`` (.ply or .pcd, atomic), as does shutdown.
+x y z [intensity ring] timestamp) and ``/diagnostics`` (counts, boresight, last save;
+WARN without a boresight, ERROR after a failed write). ``cloud_assembler/save``
+(std_srvs/Trigger) writes the accumulated cloud to ``output_file`` (.ply or .pcd,
+atomic), as does shutdown; a failed write is logged at ERROR. Without a boresight (no
+file, rpy all zero) it warns loudly at start and in every diagnostics message.
 Frames and equation: :mod:`accelcal_ros.lidar.georef`. With ``map_crs`` the odometry is
 in that projected CRS (UTM): points go out in the ``map`` frame anchored at
 ``map_origin`` (logged) and ``save`` writes .laz/.las with the CRS
@@ -19,6 +22,8 @@ import time
 
 from accelcal_ros.errors import AccelcalError
 from accelcal_ros.lidar.params import CLOUD_ASSEMBLER_PARAMS as SPECS
+from accelcal_ros.rosutil.diagnostics import (diagnostic_status, diagnostics_publisher,
+                                              publish_diagnostics)
 from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.pointcloud2 import array_to_pointcloud2, pointcloud2_to_array
@@ -34,13 +39,18 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+NO_BORESIGHT = ('NO BORESIGHT GIVEN: boresight_file is empty and boresight_rpy_deg is '
+                '[0, 0, 0], so the LiDAR axes are taken as the IMU axes (identity). The '
+                'cloud is only right if they are; calibrate with lidar_calibration and '
+                'start with boresight_file:=~/.ros/accelcal/boresight.yaml')
+
 
 class CloudAssemblerNode(Node):
     """Thin wiring around :class:`~accelcal_ros.lidar.assembler.CloudAssembler`."""
 
     def __init__(self):
         super().__init__('cloud_assembler')
-        self.params = ParameterSet(self, SPECS)
+        self.params = ParameterSet(self, SPECS, self._on_change)
         from accelcal_ros.frames import rotation_from_rpy_radians
         from accelcal_ros.lidar.assembler import CloudAssembler
         from accelcal_ros.lidar.boresight import load_boresight
@@ -65,6 +75,11 @@ class CloudAssemblerNode(Node):
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self.create_service(Trigger, 'cloud_assembler/save', self._on_save)
         self.create_timer(0.02, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
+        self._no_boresight = not p['boresight_file'] and not any(p['boresight_rpy_deg'])
+        self._last_save = ''
+        self._diag_pub = diagnostics_publisher(self)
+        self.create_timer(1.0, self._publish_diagnostics,
+                          callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info('boresight rpy (deg) '
                                f'{np.round(np.degrees(_rpy(boresight)), 4).tolist()}, lever '
                                f'arm {p["lever_arm_m"]} m')
@@ -73,6 +88,33 @@ class CloudAssemblerNode(Node):
             from accelcal_ros.lidar.map_output import origin_line
 
             self.get_logger().info(origin_line(self._map_origin, p['map_crs']))
+        if self._no_boresight:
+            self.get_logger().warning(NO_BORESIGHT)
+
+    def _on_change(self, name, value):
+        if name == 'max_wait_s':
+            with self._lock:
+                self._core.max_wait_s = float(value)
+
+    def _publish_diagnostics(self):
+        with self._lock:
+            totals = dict(self._core.totals)
+            summary = self._core.summary()
+            rejected = self._core.rejected_poses
+        level, message = 0, summary
+        if self._no_boresight:
+            level, message = 1, f'identity boresight (none given); {summary}'
+        if self._last_save.startswith('cannot write'):
+            level, message = 2, self._last_save
+        values = {'scans': totals['scans'], 'points': totals['points'],
+                  'points_georeferenced': totals['kept'],
+                  'points_before_poses': totals['before'],
+                  'points_after_poses': totals['after'],
+                  'points_non_finite': totals['non_finite'], 'poses_rejected': rejected,
+                  'boresight': 'identity (none given)' if self._no_boresight else 'given',
+                  'output_file': self.params['output_file'], 'last_save': self._last_save}
+        publish_diagnostics(self, self._diag_pub, [diagnostic_status(
+            f'{self.get_name()}: georeferenced cloud', 'lidar', level, message, values)])
 
     def _warn_once(self, key, text):
         if key not in self._warned:
@@ -141,19 +183,27 @@ class CloudAssemblerNode(Node):
             count = write_map_cloud(path, cloud, self.params['map_crs'],
                                     self.params['save_voxel_m'])
         except (AccelcalError, OSError) as exc:
-            return False, f'cannot write {path}: {exc}'
+            self._last_save = f'cannot write {path}: {exc}'
+            return False, self._last_save
+        self._last_save = f'wrote {count} points to {path}'
         return True, f'wrote {count} points to {path}; {summary}'
 
     def _on_save(self, request, response):
         response.success, response.message = self._save()
-        self.get_logger().info(response.message)
+        if response.success:
+            self.get_logger().info(response.message)
+        else:
+            self.get_logger().error(response.message)
         return response
 
     def close(self):
         """Write the accumulated cloud at shutdown (when output_file is set)."""
         if self.params['output_file']:
             ok, message = self._save()
-            print(f'[cloud_assembler] {message}', flush=True)
+            if ok:
+                self.get_logger().info(message)
+            else:
+                self.get_logger().error(message)
 
 
 def _rpy(rotation):

@@ -9,8 +9,8 @@ from typing import Any, Dict, Optional
 
 from accelcal_ros.frame_tree import frame_name_params
 from accelcal_ros.lidar.capture import CaptureSettings
-from accelcal_ros.outputs import default_output, output_validator
-from accelcal_ros.paramspec import output_file_check, ParamSpec
+from accelcal_ros.outputs import default_output, output_path_problem, output_validator
+from accelcal_ros.paramspec import ParamSpec
 from accelcal_ros.session_interface import status_period_spec
 
 _CAPTURE = CaptureSettings()
@@ -23,6 +23,10 @@ CAPTURE_FIELDS = {
     'clouds_per_capture': 'clouds_per_capture',
 }
 """Parameter name -> :class:`CaptureSettings` field (defaults come from the dataclass)."""
+
+
+def _cloud_output_ok(value):
+    return output_path_problem(value, ('.ply', '.pcd', '.laz', '.las')) if value else None
 
 
 def _rpy_ok(value):
@@ -103,7 +107,7 @@ CLOUD_ASSEMBLER_PARAMS = (
     ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
     ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply, .pcd; '
               '.laz or .las with map_crs; empty = none)',
-              validator=output_file_check(allow_empty=True)),
+              validator=_cloud_output_ok),
     ParamSpec('map_crs', '', 'projected CRS of the odometry (e.g. EPSG:32637 for UTM 37N); set: '
               'points are published in frame map = CRS - map_origin (float32-safe) and save '
               'writes .laz/.las with this CRS; empty = the odometry frame as it is',

@@ -30,6 +30,7 @@ from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
 from accelcal_ros.rosutil.dds import use_large_message_profile
+from accelcal_ros.rosutil.diagnostics import PeriodicTimer
 from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
 from accelcal_ros.rosutil.images import convert_color, image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
@@ -94,7 +95,8 @@ class P2PNode(Node):
         self._logged_reason = None
         self._last_quality = {}
         self._last_result = None
-        self.create_timer(self.params['diagnostics_period_s'], self._publish_diagnostics)
+        self._diag_timer = PeriodicTimer(self, self.params['diagnostics_period_s'],
+                                         self._publish_diagnostics)
         self.get_logger().info(
             f'p2p: emitters M1 {self.pipeline.points[0].tolist()} M2 '
             f'{self.pipeline.points[1].tolist()} m; waiting for {self._topic("image")}, '
@@ -109,6 +111,8 @@ class P2PNode(Node):
             self.inputs.close()
 
     def _on_change(self, name, value):
+        if name == 'diagnostics_period_s':
+            self._diag_timer.set_period(value)
         with self._lock:
             self.pipeline.configure({name: value})
         if name == 'order' or name == 'emitters':

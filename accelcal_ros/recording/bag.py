@@ -192,6 +192,22 @@ def _reason(exc: BaseException) -> str:
     return text.strip().splitlines()[0] if text.strip() else type(exc).__name__
 
 
+def _mcap_extent(path: Path) -> str:
+    """Return '; <how far the MCAP file can be read>' for a cut-short file ('' if unknown)."""
+    from accelcal_ros.recording.mcap_scan import scan_mcap_file
+
+    files = sorted(path.glob('*.mcap')) if path.is_dir() else [path]
+    texts = []
+    for name in files:
+        try:
+            extent = scan_mcap_file(str(name))
+        except (OSError, ValueError, struct.error):
+            continue
+        if not extent.complete:
+            texts.append(f'; {name.name} is cut short: {extent.text()}')
+    return ''.join(texts)
+
+
 class BagReader:
     """Read a bag lazily; use as a context manager (``with BagReader(path) as bag:``)."""
 
@@ -216,7 +232,10 @@ class BagReader:
             if any(w in _reason(exc).lower() for w in _DAMAGE_WORDS):
                 hint = (' (damaged or cut short, e.g. the recorder was killed: `rosbag '
                         'reindex` / `ros2 bag reindex` / `mcap recover` repair it)')
-            raise FileFormatError(self.path, f'cannot open bag: {_reason(exc)}{hint}') from None
+            if self.format == 'mcap':
+                hint = _mcap_extent(storage) + hint
+            reason = _reason(exc).rstrip('.')
+            raise FileFormatError(self.path, f'cannot open bag: {reason}{hint}') from None
         self._open = True
 
     @staticmethod

@@ -45,7 +45,6 @@ class RigCalibrationNode(Node):
 
     def __init__(self):
         super().__init__('rig_calibration')
-        self.get_logger().info('starting: loading the calibration modules')
         self.params = ParameterSet(self, SPECS, self._on_change)
         p = self.params
         problem = reference_problem(p['reference'], list(p['cameras']))

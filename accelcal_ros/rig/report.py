@@ -11,6 +11,7 @@ frame) with 1-sigma about the reference camera's x, y, z axes, ``t_0i`` and base
 ``imu_to_camera`` with its 1-sigma, the board tilt, per-pose gravity errors, dropped
 views and poses with the reason, warnings and timings.
 """
+import textwrap
 from typing import List
 
 from accelcal_ros.camera import CameraModel
@@ -149,6 +150,16 @@ def write_outputs(path: str, result: RigCalibration) -> List[str]:
     return [path, report_path, plot_path] + info_paths
 
 
+def _warning_text(warnings: List[str], width: int, most: int = 8) -> str:
+    """Return the warnings wrapped to ``width`` characters, at most ``most`` of them."""
+    lines = []
+    for warning in warnings[:most]:
+        lines += textwrap.wrap(warning, width, initial_indent='- ', subsequent_indent='  ')
+    if len(warnings) > most:
+        lines.append(f'... and {len(warnings) - most} more (see the report)')
+    return '\n'.join(lines)
+
+
 def plot(path: str, result: RigCalibration) -> None:
     """
     Draw one PNG of the calibration.
@@ -162,7 +173,10 @@ def plot(path: str, result: RigCalibration) -> None:
     import matplotlib.pyplot as plt
 
     n = len(result.cameras)
-    fig, axes = plt.subplots(2, max(n, 2), figsize=(4.2 * max(n, 2), 7.4), dpi=90)
+    cols = max(n, 3)   # the bottom row: rig, imu_to_camera, warnings (never over a plot)
+    fig, axes = plt.subplots(2, cols, figsize=(4.2 * cols, 7.4), dpi=90)
+    for unused in axes[0, n:]:
+        unused.axis('off')
     fit = result.fit
     for i, name in enumerate(result.cameras):
         ax = axes[0, i]
@@ -205,8 +219,8 @@ def plot(path: str, result: RigCalibration) -> None:
     for extra in axes[1, 2:]:
         extra.axis('off')
     if result.warnings:
-        axes[1, -1].text(0, 1, '\n'.join(f'- {w[:70]}' for w in result.warnings[:8]),
-                         va='top', fontsize=7, transform=axes[1, -1].transAxes)
+        axes[1, 2].text(0, 1, _warning_text(result.warnings, 55 * (cols - 2)), va='top',
+                        fontsize=7, transform=axes[1, 2].transAxes, clip_on=False)
     fig.tight_layout()
     write_with_atomic(path, lambda handle: fig.savefig(handle, format='png'), binary=True)
     plt.close(fig)

@@ -49,6 +49,6 @@ def run_study(pose_counts: Sequence[int], seed: int = 1) -> List[str]:
             lines.append(f'{count:5d} | {e["focal_pct"]:11.3f} | {e["centre_px"]:13.2f} | '
                          f'{e["R_0i_deg"]:12.4f} | {e["imu_to_camera_deg"]:17.4f} | '
                          f'{e["tilt_error_deg"]:12.4f} | {result.fit.fit_time_s:5.2f}')
-    lines.append('targets (issue 12, 30 poses): focal 0.3 %, centre 2 px, R_0i 0.05 deg, '
+    lines.append('targets (30 poses): focal 0.3 %, centre 2 px, R_0i 0.05 deg, '
                  'imu_to_camera 0.05 deg')
     return lines

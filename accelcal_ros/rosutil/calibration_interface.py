@@ -24,30 +24,12 @@ reliable, transient local) and ``/diagnostics``, and gives the refusals of
 reports its own events (automatic captures, warnings) with :meth:`event`.
 """
 from accelcal_ros.errors import AccelcalError
+from accelcal_ros.rosutil.diagnostics import (diagnostic_status, diagnostics_publisher,
+                                              PeriodicTimer, publish_diagnostics)
 from accelcal_ros.session_interface import SessionState, status_message, status_values
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
-
-
-def diagnostics_publisher(node):
-    """Return the node's ``/diagnostics`` publisher (diagnostic_msgs/DiagnosticArray)."""
-    return node.create_publisher(DiagnosticArray, '/diagnostics', 10)
-
-
-def publish_diagnostics(node, publisher, statuses):
-    """Publish ``statuses`` (DiagnosticStatus list) on ``/diagnostics``, stamped now."""
-    msg = DiagnosticArray(status=list(statuses))
-    msg.header.stamp = node.get_clock().now().to_msg()
-    publisher.publish(msg)
-
-
-def diagnostic_status(name, hardware_id, level, message, values):
-    """Return a DiagnosticStatus with ``values`` ({key: str}) as KeyValues."""
-    status = DiagnosticStatus(name=name, hardware_id=hardware_id, message=message)
-    status.level = bytes([int(level)])
-    status.values = [KeyValue(key=str(k), value=str(v)) for k, v in values.items()]
-    return status
 
 
 class CalibrationInterface:
@@ -78,8 +60,7 @@ class CalibrationInterface:
                     'cancel': self._on_cancel, 'finish': self._on_finish}
         self.services = [node.create_service(Trigger, f'{self.name}/{what}', handler)
                          for what, handler in handlers.items()]
-        self._timer = None
-        self.set_period(status_period_s)
+        self._timer = PeriodicTimer(node, status_period_s, self._on_timer)
         self.publish()
 
     @property
@@ -89,9 +70,7 @@ class CalibrationInterface:
 
     def set_period(self, period_s):
         """(Re)start the status and diagnostics timer with ``period_s`` seconds."""
-        if self._timer is not None:
-            self.node.destroy_timer(self._timer)
-        self._timer = self.node.create_timer(float(period_s), self._on_timer)
+        self._timer.set_period(period_s)
 
     # -- events and status ----------------------------------------------------------------
     def event(self, text, level='info'):

@@ -252,11 +252,20 @@ def rcl_error_line(exc: BaseException) -> str:
     return f'cannot start the node: {text}'
 
 
-def _close(node: Node, built: bool) -> None:
+def _close(node: Node, built: bool, spinner=None) -> None:
     if built:
         close = getattr(node, 'close', None)
         if close is not None:
             close()
+    if spinner is not None:
+        # A multi-threaded executor's workers may still run a callback; the executor's
+        # shutdown() neither waits for them (rclpy 7) nor keeps the guard condition they
+        # trigger ("exception was never retrieved: cannot use Destroyable"): wait for
+        # them first, then shut the executor down, and only then destroy the node.
+        pool = getattr(spinner, '_executor', None)
+        if pool is not None and hasattr(pool, 'shutdown'):
+            pool.shutdown(wait=True)
+        spinner.shutdown()
     try:
         node.destroy_node()
     except Exception:  # noqa: B902 - a half-built node may fail to destroy: exiting anyway
@@ -303,8 +312,8 @@ def run(node_factory: Callable[[], Node], args: Optional[Sequence[str]] = None,
         pass
     finally:
         if node is not None:
-            _close(node, built)
-        if spinner is not None:
+            _close(node, built, spinner)
+        elif spinner is not None:
             spinner.shutdown()
         if rclpy.ok():
             rclpy.shutdown()

@@ -51,3 +51,23 @@ def test_damaged_bag_raises_file_format_error_only(fmt, tmp_path):
             failures += 1
             assert str(target) in str(exc) and '\n' not in str(exc)
     assert failures >= 10  # most damage is detected (a few bytes of payload may not be)
+
+
+@pytest.mark.parametrize('fraction', [0.3, 0.8])
+def test_cut_short_mcap_says_how_far_it_reads(fraction, tmp_path):
+    """A cut-short MCAP (no footer): the error names the complete messages and their span."""
+    src = bag_path(tmp_path, 'src', 'mcap')
+    t = np.arange(400) * 0.01
+    write_imu_bag(src, 'mcap', t, np.tile([0.0, 0.0, 9.81], (len(t), 1)))
+    storage = next(src.glob('*.mcap'))
+    data = storage.read_bytes()
+    storage.write_bytes(data[:int(len(data) * fraction)])
+    with pytest.raises(FileFormatError) as info:
+        BagReader(src)
+    text = str(info.value)
+    assert f'{storage.name} is cut short' in text and '\n' not in text, text
+    count = int(text.split(' complete messages')[0].split('(')[-1])
+    span = float(text.split(' s after the first message')[0].split('read up to ')[-1])
+    # the messages are evenly spread over the file: the part kept holds about its share
+    assert 0 < count < 400 and abs(count - 400 * fraction) < 40, text
+    assert span == pytest.approx((count - 1) * 0.01, abs=1e-6), text
