@@ -10,8 +10,8 @@ import os
 from typing import Any, Union
 
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.frames import rotation_from_rpy_radians, rotation_matrix_from_list
+from accelcal_ros.textformats import load_yaml_mapping
 import numpy as np
 
 PathLike = Union[str, 'os.PathLike[str]']
@@ -63,7 +63,7 @@ def load_boresight(path: PathLike) -> np.ndarray:
 
 def _numbers(values: Any, count: int, name: str) -> np.ndarray:
     """Return ``count`` finite floats from a YAML list, else InputError naming ``name``."""
-    from accelcal_ros.fileio import yaml_number
+    from accelcal_ros.textformats import yaml_number
 
     numbers = [yaml_number(v) for v in values] if isinstance(values, list) else [None]
     if any(v is None for v in numbers):  # text, a bool (true is not 1.0), a nested list

@@ -4,8 +4,8 @@ File helpers: reading with clear errors, atomic writes that keep the user's file
 Reading: :func:`read_input_bytes` / :func:`read_input_text` are the one place where a file
 is opened for reading; a missing file, a directory, a permission problem or bytes that are
 not UTF-8 become a :class:`~accelcal_ros.errors.FileFormatError` naming the file (and the
-line of a bad byte). :func:`load_yaml_mapping` and :func:`read_numeric_csv` (and the PCD/PLY
-readers) go through them.
+line of a bad byte). The YAML and CSV readers (:mod:`accelcal_ros.textformats`) and the
+PCD/PLY readers go through them.
 
 Writing: data goes to a temporary file ``.<name>.<pid>-<n>.accelcal-tmp`` in the target's
 directory, is flushed and fsync'ed, then ``os.replace`` puts it in place (atomic on POSIX).
@@ -29,23 +29,16 @@ writer keeps a backup; a path inside an input bag directory, or an existing file
 any input directory, is refused always.
 """
 import contextlib
-import csv
 import io
 import itertools
-import math
 import os
 import re
 import stat
 import threading
-from typing import (Any, Callable, Dict, IO, Iterable, Iterator, List, Optional, Sequence,
-                    TYPE_CHECKING)
+from typing import Any, Callable, IO, Iterable, Iterator, List, Optional
 
 from accelcal_ros.errors import FileFormatError, FileWriteError, InputError, PathLike
 from accelcal_ros.filecheck import file_kind, open_regular_file, SIZE_LIMITS
-import yaml
-
-if TYPE_CHECKING:  # numpy is imported where a CSV is read (keeps this module light)
-    import numpy as np
 
 TEMP_SUFFIX = '.accelcal-tmp'
 _TEMP_PATTERN = re.compile(r'^\.(?P<name>.+)\.(?P<pid>\d+)-\d+' + re.escape(TEMP_SUFFIX) + '$')
@@ -166,151 +159,6 @@ def read_input_text(path: PathLike, what: str = 'file', kind: str = 'file') -> s
     """Return the content of ``path`` as text (UTF-8); see :func:`read_input_bytes`."""
     path = os.fspath(path)
     return decode_text(path, read_input_bytes(path, what, kind), what)
-
-
-def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
-    """Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise."""
-    path = os.fspath(path)
-    text = read_input_text(path, what, kind='yaml')
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        line = None
-        mark = getattr(exc, 'problem_mark', None)
-        if mark is not None:
-            line = mark.line + 1
-        reason = ' '.join(str(exc).split())
-        raise FileFormatError(path, f'{what} is not valid YAML ({reason})', line) from None
-    except (ValueError, TypeError, OverflowError, RecursionError) as exc:
-        # e.g. an impossible date (2021-13-45) or nesting too deep for the parser
-        raise FileFormatError(path, f'{what} is not valid YAML ({exc})') from None
-    if not isinstance(data, dict):
-        raise FileFormatError(path, f'{what} must be a YAML mapping, got '
-                              f'{type(data).__name__} (empty or truncated file?)')
-    if _expanded_size_exceeds(data, MAX_YAML_NODES):
-        raise FileFormatError(path, f'{what} expands to more than {MAX_YAML_NODES} values '
-                              '(nested aliases?); not a file this package writes')
-    return data
-
-
-_YAML12_NUMBER = re.compile(r'^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$')
-
-
-def yaml_number(value: Any) -> Optional[float]:
-    """
-    Return a YAML scalar as a float when it is a number, else None.
-
-    An int or float is a number, a bool is not (``true`` is not 1.0). A string that YAML
-    1.2 reads as a number (``1e-3``: PyYAML's YAML 1.1 reads it as text) counts too; an
-    integer beyond a double is infinity (the caller's finiteness check names it).
-    """
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, (int, float)):
-        try:
-            return float(value)
-        except OverflowError:
-            return math.copysign(math.inf, value)
-    if isinstance(value, str) and _YAML12_NUMBER.match(value.strip()):
-        return float(value)
-    return None
-
-
-#: most values (after expanding YAML aliases) a file may hold: a guard against alias bombs
-MAX_YAML_NODES = 1_000_000
-
-
-def _expanded_size_exceeds(data, limit):
-    """Whether ``data`` holds more than ``limit`` values counting shared ones each time."""
-    count = 0
-    stack = [data]
-    while stack:
-        item = stack.pop()
-        count += 1
-        if count > limit:
-            return True
-        if isinstance(item, dict):
-            stack.extend(item.keys())
-            stack.extend(item.values())
-        elif isinstance(item, (list, tuple)):
-            stack.extend(item)
-    return False
-
-
-def dump_yaml(data: Any) -> str:
-    """YAML text with keys in insertion order and lists of numbers in flow style."""
-    class _Dumper(yaml.SafeDumper):
-        pass
-
-    def _represent_list(dumper, value):
-        flow = all(isinstance(v, (int, float)) for v in value)
-        return dumper.represent_sequence('tag:yaml.org,2002:seq', value, flow_style=flow)
-
-    _Dumper.add_representer(list, _represent_list)
-    return yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False)
-
-
-def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence[str] = (),
-                     finite: bool = False,
-                     increasing: Optional[str] = None) -> Dict[str, 'np.ndarray']:
-    """
-    Read a CSV with a header into a dict of float arrays; errors name file and line.
-
-    ``required`` columns must all be present; ``optional`` ones are returned if present.
-    Every row must have as many fields as the header and only numbers; a short last row
-    (truncated file) is reported with its line number. With ``finite=True`` a NaN or
-    infinity is an error; ``increasing='t'`` requires column ``t`` to increase strictly.
-    """
-    import numpy as np
-
-    path = os.fspath(path)
-    text = read_input_text(path, 'CSV file', kind='csv')
-    reader = csv.reader(io.StringIO(text, newline=''))
-    try:
-        rows = _numeric_rows(path, reader, required, optional, finite, increasing)
-    except csv.Error as exc:
-        raise FileFormatError(path, f'malformed CSV ({exc})', reader.line_num or 1) from None
-    values, wanted = rows
-    table = np.array(values, dtype=float).reshape(-1, len(wanted))
-    return {name: table[:, k] for k, name in enumerate(wanted)}
-
-
-def _numeric_rows(path, reader, required, optional, finite, increasing):
-    try:
-        header = next(reader)
-    except StopIteration:
-        raise FileFormatError(path, 'empty file (expected a header line)', 1) from None
-    header = [h.strip() for h in header]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise FileFormatError(path, f'header lacks column(s) {missing}; '
-                              f'expected {",".join(list(required) + list(optional))}', 1)
-    wanted = [c for c in list(required) + list(optional) if c in header]
-    index = [header.index(c) for c in wanted]
-    k_increasing = wanted.index(increasing) if increasing is not None else None
-    rows = []
-    for row in reader:
-        line = reader.line_num
-        if not row or all(not f.strip() for f in row):
-            continue
-        if len(row) != len(header):
-            raise FileFormatError(path, f'expected {len(header)} fields, got {len(row)} '
-                                  '(truncated or malformed line)', line)
-        try:
-            values = [float(row[i]) for i in index]
-        except ValueError:
-            shown = ','.join(row)
-            shown = shown if len(shown) <= 80 else shown[:77] + '...'
-            raise FileFormatError(path, f'non-numeric value in {shown!r}', line) from None
-        if finite and not all(math.isfinite(v) for v in values):
-            raise FileFormatError(path, f'NaN or infinite value in {",".join(row)!r}', line)
-        if k_increasing is not None and rows:
-            k = k_increasing
-            if not values[k] > rows[-1][k]:
-                raise FileFormatError(path, f'column {increasing} must increase strictly '
-                                      f'({values[k]!r} after {rows[-1][k]!r})', line)
-        rows.append(values)
-    return rows, wanted
 
 
 # ---------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ def output_path_problem(value: str, suffixes: Sequence[str] = (),
     if not value.strip():
         return 'must not be empty'
     if not directory:  # a device, FIFO or socket is never replaced (fileio's rule)
-        from accelcal_ros.fileio import output_path_problem as special_file_problem
+        from accelcal_ros.filecheck import output_path_problem as special_file_problem
 
         problem = special_file_problem(value)
         if problem:

@@ -19,11 +19,12 @@ import tempfile
 import time
 
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar.cloud import xyz
 from accelcal_ros.lidar.geo_sim import simulate_drive, vlp16_scans, write_drive_bag
 from accelcal_ros.lidar.geotraj import MapGeoreferencer
 from accelcal_ros.lidar.las import LasCloudWriter
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 
 

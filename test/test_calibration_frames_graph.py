@@ -3,10 +3,11 @@ import time
 
 from accelcal_ros.boresight_file import load_boresight
 from accelcal_ros.camera.rig import load_rig, rig_to_mapping, ring_rig
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.frame_tree import check_tree, to_ancestor
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
 from accelcal_ros.rosutil.static_tf import msg_to_transform, STATIC_TF_QOS
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 import pytest
 from tf2_msgs.msg import TFMessage

@@ -2,7 +2,8 @@
 import os
 
 from accelcal_ros.errors import FileFormatError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic, write_with_atomic
+from accelcal_ros.fileio import write_text_atomic, write_with_atomic
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import pytest
 
 
@@ -45,7 +46,8 @@ def test_yaml_errors_name_file_and_line(tmp_path):
 
 def test_readers_name_the_file_for_missing_directory_and_non_utf8(tmp_path):
     """Missing file, directory and non-UTF-8 bytes are FileFormatErrors (with the line)."""
-    from accelcal_ros.fileio import read_input_bytes, read_numeric_csv
+    from accelcal_ros.fileio import read_input_bytes
+    from accelcal_ros.textformats import read_numeric_csv
 
     binary = tmp_path / 'rec.csv'
     binary.write_bytes(b't,ax,ay,az\n0,1,2,3\n\xff\xfe,1,2,3\n')
@@ -133,7 +135,8 @@ def test_stale_temp_files_of_dead_writers_are_removed(tmp_path):
 def test_guarded_command_cannot_overwrite_its_inputs(tmp_path):
     """Inside guard_inputs, writing a file that was read (or given) is refused."""
     from accelcal_ros.errors import InputError
-    from accelcal_ros.fileio import guard_inputs, read_numeric_csv
+    from accelcal_ros.fileio import guard_inputs
+    from accelcal_ros.textformats import read_numeric_csv
 
     rec = tmp_path / 'rec.csv'
     rec.write_text('t,ax\n0,1\n')

@@ -59,7 +59,8 @@ def _write_recording(path):
 
 
 def _write_calibration(path):
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
 
     write_text_atomic(path, dump_yaml({
         'model': 'full', 'scale': [1.01, 0.99, 1.002], 'bias': [0.01, -0.02, 0.003],
@@ -69,7 +70,8 @@ def _write_calibration(path):
 
 
 def _write_rig(path):
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
 
     k = [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]
     eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
@@ -92,7 +94,8 @@ def _write_camera_info(path):
 
 
 def _write_boresight(path):
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
 
     write_text_atomic(path, dump_yaml({'rpy_deg': [1.5, -0.5, 90.0],
                                        'rpy_std_deg': [0.01, 0.01, 0.02]}))
@@ -402,7 +405,8 @@ COMMANDS = {
 
 def _calibration_with_captures(path):
     """Write a calibration file as ``accelcal calibrate`` does (with captures to plot)."""
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
 
     directions = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0],
                            [0, -1, 0.0]])

@@ -15,7 +15,7 @@ import socket
 import stat
 import threading
 
-from accelcal_ros import filecheck, fileio
+from accelcal_ros import filecheck, fileio, textformats
 from accelcal_ros.errors import AccelcalError, FileFormatError, FileWriteError, InputError
 import numpy as np
 import pytest
@@ -106,11 +106,11 @@ def test_reads_are_bounded_by_the_size_limit_of_the_format(tmp_path, monkeypatch
     """A file beyond its format's limit is refused with the limit, whatever its content."""
     path = tmp_path / 'big.yaml'
     path.write_text('a: [' + ', '.join(['1.0'] * 5000) + ']\n')
-    assert fileio.load_yaml_mapping(path)['a'][0] == 1.0
+    assert textformats.load_yaml_mapping(path)['a'][0] == 1.0
     monkeypatch.setitem(fileio.SIZE_LIMITS, 'yaml', 2**20 // 64)
     with pytest.raises(FileFormatError,
                        match='larger .* than the 0 MiB this package reads from a yaml file'):
-        fileio.load_yaml_mapping(path)
+        textformats.load_yaml_mapping(path)
     # every kind has a stated limit, none beyond what a 64-bit process could hold
     assert set(fileio.SIZE_LIMITS) >= {'yaml', 'csv', 'point cloud', 'image', 'text line'}
     assert all(0 < v <= 4 * 2**30 for v in fileio.SIZE_LIMITS.values())
@@ -241,7 +241,7 @@ def test_apply_into_the_bag_it_reads_is_refused_and_the_bag_survives(tmp_path, c
 
 
 def _calibration(path):
-    fileio.write_text_atomic(path, fileio.dump_yaml({
+    fileio.write_text_atomic(path, textformats.dump_yaml({
         'format': 'accelcal_ros/calibration 1', 'model': 'full',
         'scale': [1.01, 0.99, 1.002], 'bias': [0.01, -0.02, 0.003],
         'misalignment': [0.001, -0.002, 0.0005]}))

@@ -96,7 +96,7 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
 def _read_recording(path):
     """Return (t, accel in g); NaN samples are kept (the calibration skips them)."""
     from accelcal_ros.errors import FileFormatError
-    from accelcal_ros.fileio import read_numeric_csv
+    from accelcal_ros.textformats import read_numeric_csv
     import numpy as np
 
     columns = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'))
@@ -335,7 +335,7 @@ def _read_attitude_input(args):
         warn(imu.warnings)
         return imu.t, imu.accel / STANDARD_GRAVITY, imu.gyro
     t, accel = _read_recording_of(args)
-    from accelcal_ros.fileio import read_numeric_csv
+    from accelcal_ros.textformats import read_numeric_csv
 
     columns = read_numeric_csv(args.recording, ('t',), ('gx', 'gy', 'gz'))
     present = [c for c in ('gx', 'gy', 'gz') if c in columns]

@@ -23,7 +23,8 @@ from typing import Any, Dict, Mapping, Sequence, Tuple, Union
 from accelcal_ros.camera.model import camera_model_from_mapping, CameraModel
 from accelcal_ros.camera.rig import Rig, RigCamera
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import numpy as np
 
 PathLike = Union[str, 'os.PathLike[str]']

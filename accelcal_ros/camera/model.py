@@ -28,7 +28,7 @@ from accelcal_ros.camera.distortion import (COEFFICIENT_COUNTS, distort_normaliz
                                             RATIONAL_POLYNOMIAL, undistort_equidistant_angle,
                                             undistort_normalized)
 from accelcal_ros.errors import InputError
-from accelcal_ros.fileio import yaml_number
+from accelcal_ros.textformats import yaml_number
 import numpy as np
 
 MAX_SIDE_PX = 100000

@@ -38,9 +38,10 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 from accelcal_ros.camera.distortion import PLUMB_BOB
 from accelcal_ros.camera.model import camera_model_from_mapping, CameraModel
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic, yaml_number
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, rot_x, rot_y, rot_z,
                                  rotation_matrix_from_list)
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping, yaml_number
 import numpy as np
 
 REFERENCE_TOLERANCE = 1e-6

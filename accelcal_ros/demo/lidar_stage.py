@@ -29,7 +29,8 @@ from std_srvs.srv import Trigger
 
 def run(ctx):
     """Run the stage (see the module docstring)."""
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
     from accelcal_ros.frames import rpy_radians_from_rotation
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)

@@ -13,7 +13,7 @@ import re
 from typing import Any, Dict, List, Optional, Tuple
 
 from accelcal_ros.errors import AccelcalError, InputError
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar.boresight import (BoresightResult, calibrate_boresight, PathLike,
                                           StaticPosition)
 from accelcal_ros.lidar.cloud import read_cloud, xyz
@@ -22,6 +22,7 @@ from accelcal_ros.lidar.plane_fit import FloorSearch
 from accelcal_ros.lidar.static_segments import longest_static_segment
 from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.model import SensorModel
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 
 _CLOUD = re.compile(r'^(pos\d+)\.(pcd|ply)$', re.IGNORECASE)

@@ -238,7 +238,8 @@ def write_sample(directory: Any, seconds: float = 10.0) -> List[str]:
     """
     import os
 
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
     from accelcal_ros.lidar.geotraj import write_trajectory_csv
     from accelcal_ros.lidar.pcd import write_pcd
 

@@ -106,7 +106,7 @@ def trajectory_problem(t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
 
 def read_trajectory_csv(path: str, heading: str = 'enu') -> GeodeticTrajectory:
     """Read ``t,lat,lon,h,roll,pitch,yaw`` (deg); errors name the file and line."""
-    from accelcal_ros.fileio import read_numeric_csv
+    from accelcal_ros.textformats import read_numeric_csv
 
     cols = read_numeric_csv(path, TRAJECTORY_COLUMNS)
     t = cols['t']

@@ -1,14 +1,15 @@
 """
 IMU logs as CSV: header ``t,ax,ay,az[,gx,gy,gz]`` (s, m/s^2 specific force, rad/s).
 
-Read with :func:`accelcal_ros.fileio.read_numeric_csv` (errors name file and line);
+Read with :func:`accelcal_ros.textformats.read_numeric_csv` (errors name file and line);
 times must increase strictly and every value must be finite.
 """
 from dataclasses import dataclass
 from typing import Optional
 
 from accelcal_ros.errors import FileFormatError
-from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 
 

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 from typing import Optional, Tuple
 
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 
 POSE_COLUMNS = ('t', 'x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')

@@ -48,7 +48,7 @@ class ViewPath:
     @classmethod
     def load(cls, path: str) -> 'ViewPath':
         """Read a path CSV (errors name the file and line)."""
-        from accelcal_ros.fileio import read_numeric_csv
+        from accelcal_ros.textformats import read_numeric_csv
 
         table: Dict[str, np.ndarray] = read_numeric_csv(
             path, ('t', 'azimuth', 'elevation', 'fov_h'), finite=True, increasing='t')

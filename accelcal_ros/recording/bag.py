@@ -24,8 +24,9 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type
 
 from accelcal_ros.errors import AccelcalError, FileFormatError, InputError
 from accelcal_ros.filecheck import check_regular_file
-from accelcal_ros.fileio import load_yaml_mapping, record_input
+from accelcal_ros.fileio import record_input
 from accelcal_ros.recording.progress import Progress
+from accelcal_ros.textformats import load_yaml_mapping
 
 BAG_SUFFIXES = ('.bag', '.mcap', '.db3')
 _STORAGE_SUFFIXES = ('.mcap', '.db3')

@@ -16,7 +16,7 @@ from typing import Dict, List, Sequence, Tuple, TypeVar
 
 from accelcal_ros.camera import camera_model_from_mapping
 from accelcal_ros.errors import CalibrationError, FileFormatError, InputError
-from accelcal_ros.fileio import load_yaml_mapping
+from accelcal_ros.textformats import load_yaml_mapping
 import cv2
 import numpy as np
 

@@ -16,8 +16,9 @@ from typing import List
 
 from accelcal_ros.camera import CameraModel
 from accelcal_ros.camera.rig import Rig, RigCamera, save_rig
-from accelcal_ros.fileio import dump_yaml, write_text_atomic, write_with_atomic
+from accelcal_ros.fileio import write_text_atomic, write_with_atomic
 from accelcal_ros.rig.calibrate import RigCalibration
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 from scipy.spatial.transform import Rotation
 

@@ -31,8 +31,9 @@ import datetime
 from typing import Any, Optional
 
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic, yaml_number
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.sensor.model import MODELS, SensorModel
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping, yaml_number
 import numpy as np
 
 FORMAT = 'accelcal_ros/calibration 1'

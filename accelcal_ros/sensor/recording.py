@@ -11,7 +11,8 @@ import io
 from typing import Tuple
 
 from accelcal_ros.errors import FileFormatError
-from accelcal_ros.fileio import read_numeric_csv, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 from numpy.typing import ArrayLike
 

@@ -29,7 +29,7 @@ STOPPED_M_S = 0.05
 
 def read_odometry_csv(path: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return ``(t s, v m/s, yaw_rate rad/s)`` of an odometry CSV (see the module text)."""
-    from accelcal_ros.fileio import read_numeric_csv
+    from accelcal_ros.textformats import read_numeric_csv
 
     columns = read_numeric_csv(path, ('t', 'v', 'yaw_rate'), finite=True)
     t = columns['t']

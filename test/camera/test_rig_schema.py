@@ -3,7 +3,7 @@ import copy
 
 from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.errors import FileFormatError
-from accelcal_ros.fileio import dump_yaml
+from accelcal_ros.textformats import dump_yaml
 import pytest
 
 K = [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]

@@ -8,13 +8,14 @@ coordinates to 1 mm (voxel thinning optional).
 """
 import time
 
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
 from accelcal_ros.lidar.cloud import make_cloud
 from accelcal_ros.lidar.map_output import choose_origin, voxel_thin, write_map_cloud
 from accelcal_ros.lidar.poses import PoseStream
 from accelcal_ros.lidar.scanner_sim_ros import drive_moving_platform
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
+from accelcal_ros.textformats import dump_yaml
 import laspy
 import numpy as np
 import pytest

@@ -50,7 +50,8 @@ def test_mismatched_calibration_is_reported(distorted_protocol):
 def test_boresight_file_fields_validated(tmp_path, fields, match):
     """Every field of the boresight file is checked where it is read, naming file and field."""
     from accelcal_ros.errors import FileFormatError
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
     from accelcal_ros.lidar.boresight import load_boresight
 
     path = tmp_path / 'bs.yaml'
@@ -78,7 +79,8 @@ def _georef_inputs(tmp_path, points=100):
 def test_georeference_refuses_nan_boresight_and_empty_cloud(tmp_path, capsys):
     """A NaN boresight: exit 1 naming file and field, nothing written; same for 0 points."""
     from accelcal_ros.cli import main
-    from accelcal_ros.fileio import dump_yaml, write_text_atomic
+    from accelcal_ros.fileio import write_text_atomic
+    from accelcal_ros.textformats import dump_yaml
 
     args = _georef_inputs(tmp_path)
     write_text_atomic(tmp_path / 'nan.yaml', dump_yaml({'rpy_deg': [float('nan'), 2.0, 3.0]}))

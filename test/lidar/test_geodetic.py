@@ -8,7 +8,7 @@ coordinates to 1 mm and the GPS times. Dropping the meridian convergence (1.16 d
 or the scale factor (0.99970) must fail the same 1 cm test.
 """
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar.cloud import xyz
 from accelcal_ros.lidar.geo_sim import flat_shortcut, simulate_drive, target_truth
 from accelcal_ros.lidar.geodesy import enu_from_body_rpy, MapProjection, utm_epsg
@@ -16,6 +16,7 @@ from accelcal_ros.lidar.geotraj import (GeodeticTrajectory, MapGeoreferencer,
                                         write_trajectory_csv)
 from accelcal_ros.lidar.las import unix_to_adjusted_gps
 from accelcal_ros.lidar.pcd import write_pcd
+from accelcal_ros.textformats import dump_yaml
 import laspy
 import numpy as np
 import pytest

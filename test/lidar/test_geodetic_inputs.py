@@ -7,12 +7,13 @@ per-point time: each is one line on stderr, exit status 1 (0 for the warning), a
 output file appears.
 """
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import dump_yaml, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar.cloud import make_cloud
 from accelcal_ros.lidar.geo_sim import simulate_drive, write_drive_bag
 from accelcal_ros.lidar.geodesy import MapProjection
 from accelcal_ros.lidar.las import adjusted_gps_to_unix
 from accelcal_ros.lidar.pcd import write_pcd
+from accelcal_ros.textformats import dump_yaml
 import laspy
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """Graph tests: ``lidar_calibration`` and ``cloud_assembler`` as processes in a ROS graph."""
 import time
 
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
 from accelcal_ros.lidar.boresight import load_boresight
 from accelcal_ros.lidar.ply import read_ply
@@ -10,6 +10,7 @@ from accelcal_ros.lidar.scanner_sim_ros import (drive_moving_platform, drive_sta
 from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.static_tf import msg_to_transform, STATIC_TF_QOS
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import numpy as np
 import pytest
 from sensor_msgs.msg import PointCloud2

@@ -4,9 +4,9 @@ import json
 
 from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import dump_yaml
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_z, rpy_radians_from_rotation
 from accelcal_ros.p2p import render
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 import pytest
 

@@ -1,10 +1,10 @@
 """Stitcher parameters: defaults, validation, and config/stitcher.yaml listing them all."""
 import os
 
-from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.panorama.params import STITCHER_PARAMS
 from accelcal_ros.panorama.roi_params import STITCHER_WITH_ROI_PARAMS
 from accelcal_ros.paramspec import check_all
+from accelcal_ros.textformats import load_yaml_mapping
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

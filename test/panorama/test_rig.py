@@ -3,8 +3,8 @@ import os
 
 from accelcal_ros.camera.rig import load_rig, ring_rig, save_rig
 from accelcal_ros.errors import FileFormatError
-from accelcal_ros.fileio import dump_yaml
 from accelcal_ros.frames import rot_y
+from accelcal_ros.textformats import dump_yaml
 import numpy as np
 import pytest
 

@@ -1,10 +1,10 @@
 """The rig file's optional imu_to_camera: read, written, validated, and who wins."""
 from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera, RigCamera, ring_rig, save_rig
 from accelcal_ros.errors import FileFormatError, InputError
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_z
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.stitch import Stitcher
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import numpy as np
 import pytest
 

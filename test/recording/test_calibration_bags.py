@@ -1,10 +1,10 @@
 """calibrate / apply / attitude / record on bags in the three formats, against the CSV path."""
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.recording.bag import BagReader
 from accelcal_ros.recording.sim_bags import bag_path, FORMATS, write_imu_bag
 from accelcal_ros.recording.streams import read_imu
 from accelcal_ros.sensor.recording import load_recording
+from accelcal_ros.textformats import load_yaml_mapping
 import numpy as np
 import pytest
 

@@ -1,6 +1,6 @@
 """boresight BAG and georeference BAG against the directory / PCD+CSV paths and the truth."""
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import dump_yaml, load_yaml_mapping, write_text_atomic
+from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
 from accelcal_ros.lidar.boresight import load_boresight
 from accelcal_ros.lidar.cloud import read_cloud, xyz
@@ -10,6 +10,7 @@ from accelcal_ros.lidar.poses import write_poses_csv
 from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.recording.sim_bags import bag_path, FORMATS, write_protocol_bag
 from accelcal_ros.recording.writer import BagWriter
+from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import numpy as np
 import pytest
 

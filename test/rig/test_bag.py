@@ -10,13 +10,13 @@ capture directory give the reference calibration.
 """
 from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.recording.sim_bags import bag_path, T0_NS
 from accelcal_ros.recording.writer import BagWriter, sensor_data_qos
 from accelcal_ros.rig.bag import camera_name, camera_names
 from accelcal_ros.rig.extrinsics import rotation_angle_deg
 from accelcal_ros.rig.render import (default_truth, imu_samples, plan_poses, Renderer,
                                      write_imu_csv)
+from accelcal_ros.textformats import load_yaml_mapping
 import cv2
 import numpy as np
 import pytest

@@ -9,9 +9,9 @@ import os
 
 from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.cli import main
-from accelcal_ros.fileio import load_yaml_mapping
 from accelcal_ros.rig.extrinsics import rotation_angle_deg
 from accelcal_ros.rig.render import default_truth, plan_poses, write_dataset
+from accelcal_ros.textformats import load_yaml_mapping
 import numpy as np
 import pytest
 
