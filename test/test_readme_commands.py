@@ -6,7 +6,8 @@ the README's names; then each ``accelcal ...`` line of the README's ```bash bloc
 its ``\`` continuations, and the ``echo ... | accelcal p2p-solve`` pipeline) runs in DIR
 through bash, exactly as a user would paste it, and must exit 0. Lines that need hardware
 or a running ROS graph (``ros2 ...``, the nodes) are not ``accelcal`` commands; an
-``accelcal`` line ending in ``# hardware`` (an I2C bus) is skipped.
+``accelcal`` line ending in ``# hardware`` (an I2C or SPI bus) or in ``serves until Ctrl-C``
+(``accelcal serve``, tested in a browser by its own tests) is skipped.
 """
 import os
 import re
@@ -45,7 +46,8 @@ def readme_commands(text):
             stripped = command.strip()
             first = stripped.split(None, 1)[0] if stripped else ''
             if first == 'accelcal' or (first == 'echo' and '| accelcal' in stripped):
-                commands.append((stripped, stripped.endswith('# hardware')))
+                commands.append((stripped, stripped.endswith(('# hardware',
+                                                              'serves until Ctrl-C'))))
     return commands
 
 

@@ -302,4 +302,5 @@ def test_output_file_parameters_refuse_devices_directories_and_empty(tmp_path, e
         assert value is None and reason.startswith('output_file: '), (bad, reason)
     _, reason = spec.check('')
     assert (reason is None) == (exe == 'cloud_assembler'), reason
-    assert spec.check(str(tmp_path / 'out.yaml')) == (str(tmp_path / 'out.yaml'), None)
+    good = str(tmp_path / ('cloud.ply' if exe == 'cloud_assembler' else 'out.yaml'))
+    assert spec.check(good) == (good, None)

@@ -123,19 +123,25 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate, read
 
 
 def test_unsustainable_rate_runs_when_asked_and_reports_its_losses(graph):
-    """I2C at 100 kHz and 800 Hz with allow_unsustainable_rate: WARN, achieved rate, losses."""
+    """I2C at 100 kHz and 1600 Hz with allow_unsustainable_rate: WARN, achieved rate, losses.
+
+    1600 samples/s x 831 us per 6-byte read is 1.33 s of wire time per second: the bus
+    cannot keep up whatever the host's load (800 Hz would fit in 0.67 s/s: whether it loses
+    samples then depends on the host, not on the bus).
+    """
     diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
-    proc = graph.start('imu_driver', {'backend': 'sim', 'sim.bus': 'i2c', 'rate_hz': 800.0,
+    proc = graph.start('imu_driver', {'backend': 'sim', 'sim.bus': 'i2c', 'rate_hz': 1600.0,
                                       'bus_speed_hz': 100000.0, 'diagnostics_period_s': 0.5,
                                       'allow_unsustainable_rate': True})
-    _, values = wait_values(diag, lambda v: int(v['fifo_overruns_bus_too_slow']) > 0
+    # (which overrun is the bus's and which the host's is a heuristic: not asserted here)
+    _, values = wait_values(diag, lambda v: int(v['fifo_lost_samples_estimated']) > 0
                             and int(v['samples_published']) > 2000, 60.0)
-    assert 'running anyway' in proc.output() and 'only at >= 400 kHz' in proc.output()
+    assert 'running anyway' in proc.output() and 'only over SPI at >= 2 MHz' in proc.output()
     msgs, _ = diag.snapshot()
     status = [s for a in msgs for s in a.status if 'imu_driver' in s.name][-1]
     assert status.level == status.WARN and 'unsustainable rate, achieved' in status.message
-    # the bus gives about 1 / (831 us + status reads): well below 800 Hz
-    assert float(values['rate_hz_achieved']) < 0.95 * 800.0
+    # the bus gives at most 1 / (831 us + status reads), about 1100 Hz: well below 1600 Hz
+    assert float(values['rate_hz_achieved']) < 0.95 * 1600.0
     assert int(values['fifo_lost_samples_estimated']) > 0
     assert int(values['sim_fifo_dropped_samples']) > 0
 

@@ -35,7 +35,7 @@ def journey(graph, positions, timeout, result):
         time.sleep(0.3)
         messages, _ = status.snapshot()
         if messages:
-            got = int(_values(messages[-1]).get('positions', 0))
+            got = int(_values(messages[-1]).get('captures', 0) or 0)
     result['positions'] = got
     reply = graph.call(Trigger, 'calibration/finish', timeout=30.0)
     result['finish'] = [reply.success, reply.message]

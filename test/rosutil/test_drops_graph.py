@@ -38,7 +38,11 @@ def test_lidar_calibration_counts_and_logs_dropped_clouds_and_samples(graph, tmp
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import Imu, PointCloud2, PointField
 
+    from std_srvs.srv import Trigger
+
     proc = graph.start('lidar_calibration', {'output_file': str(tmp_path / 'bs.yaml')})
+    # outside a session the node reads nothing; within one a malformed message is a drop
+    assert graph.call(Trigger, 'lidar_calibration/start', timeout=20.0).success
     diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
     clouds = graph.node.create_publisher(PointCloud2, 'points', qos_profile_sensor_data)
     imu = graph.node.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
@@ -64,9 +68,12 @@ def test_rig_calibration_counts_unusable_images_and_refuses_an_empty_output(grap
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import Image
 
+    from std_srvs.srv import Trigger
+
     proc = graph.start('rig_calibration', {'output_file': str(tmp_path / 'rig.yaml'),
                                            'capture_dir': str(tmp_path / 'cap'),
                                            'cameras': ['cam0']})
+    assert graph.call(Trigger, 'rig_calibration/start', timeout=20.0).success
     diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
     pub = graph.node.create_publisher(Image, 'cam0/image_raw', qos_profile_sensor_data)
     image = Image(height=2, width=2, encoding='32SC4', step=32, data=b'\x00' * 64)
