@@ -19,6 +19,16 @@ if TYPE_CHECKING:  # pragma: no cover - annotations only
 PathLike = Union[str, 'os.PathLike[str]']
 
 
+def add_rig_attitude_arguments(p: Any) -> None:
+    """``--rig`` and the reference camera's ``--roll``/``--pitch`` (stitch and view)."""
+    p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
+                   'K, D, R; optional imu_to_camera)')
+    p.add_argument('--roll', type=angle_deg(180.0),
+                   help='reference camera roll, degrees (REP-103 body attitude)')
+    p.add_argument('--pitch', type=angle_deg(90.0),
+                   help='reference camera pitch, degrees (REP-103: nose down positive)')
+
+
 def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add this feature's subcommands to the ``accelcal`` parser."""
     p = subparsers.add_parser(
@@ -26,12 +36,7 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('images', nargs='+', help='camera images, in rig order; or one BAG '
                    '(rosbag2 directory, .mcap, .db3, ROS 1 .bag) with --images TOPIC...')
     _add_stitch_bag_arguments(p)
-    p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
-                   'K, D, R; optional imu_to_camera)')
-    p.add_argument('--roll', type=angle_deg(180.0),
-                   help='reference camera roll, degrees (REP-103 body attitude)')
-    p.add_argument('--pitch', type=angle_deg(90.0),
-                   help='reference camera pitch, degrees (REP-103: nose down positive)')
+    add_rig_attitude_arguments(p)
     p.add_argument('--fov-h', type=float_in(0.0, 360.0, low_open=True), default=180.0,
                    help='horizontal extent, deg (180)')
     p.add_argument('--fov-v', type=float_in(0.0, 180.0, low_open=True), default=120.0,

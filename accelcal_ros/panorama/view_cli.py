@@ -63,19 +63,14 @@ class ViewPath:
 
 def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add ``view`` (and ``study roi``) to the ``accelcal`` parser."""
-    from accelcal_ros.panorama.cli import _add_stitch_bag_arguments
+    from accelcal_ros.panorama.cli import _add_stitch_bag_arguments, add_rig_attitude_arguments
 
     p = subparsers.add_parser(
         'view', help='a levelled pinhole view (region of interest) of rig images or a bag')
     p.add_argument('images', nargs='+', help='camera images, in rig order; or one BAG '
                    'with --images TOPIC... (then -o names a video or a folder of PNGs)')
     _add_stitch_bag_arguments(p)
-    p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
-                   'K, D, R; optional imu_to_camera)')
-    p.add_argument('--roll', type=angle_deg(180.0),
-                   help='reference camera roll, degrees (REP-103 body attitude)')
-    p.add_argument('--pitch', type=angle_deg(90.0),
-                   help='reference camera pitch, degrees (REP-103: nose down positive)')
+    add_rig_attitude_arguments(p)
     p.add_argument('--azimuth', type=angle_deg(360.0), default=0.0,
                    help='view direction, deg: 0 = the panorama centre, positive right (0)')
     p.add_argument('--elevation', type=angle_deg(90.0), default=0.0,
