@@ -23,7 +23,6 @@ from graph_harness.graph import executable
 import numpy as np
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
-from std_msgs.msg import Float64
 
 ROLL_DEG, PITCH_DEG = 3.0, 15.0
 EMITTERS = [0.0, -0.25, 0.0, 0.0, 0.25, 0.0]
@@ -76,7 +75,7 @@ def run(ctx):
     image_pub = node.create_publisher(Image, 'image', 5)      # reliable, as most drivers
     info_pub = node.create_publisher(CameraInfo, 'camera_info', 10)
     poses = graph.collect(PoseStamped, 'pose', 10)
-    yaws = graph.collect(Float64, 'yaw', 10)
+    yaws = graph.collect(Vector3Stamped, 'yaw', 10)
     attitude = graph.collect(Vector3Stamped, 'attitude' if have_attitude
                              else 'sim/attitude_truth')
     diag = graph.collect(DiagnosticArray, '/diagnostics', 10)

@@ -15,8 +15,10 @@ by :mod:`accelcal_ros.rosutil.image_input`, undecodable frames counted in
 ``attitude`` node publishes it; matched to each image by stamp).
 
 Publishes ``pose`` (geometry_msgs/PoseStamped: the object in the camera optical frame,
-``X_cam = R X_obj + t``, frame_id and stamp of the image), ``yaw`` (std_msgs/Float64,
-rad: heading of the optical axis about the object's vertical,
+``X_cam = R X_obj + t``, frame_id and stamp of the image), ``yaw``
+(geometry_msgs/Vector3Stamped, the image's header; ``vector.z`` = the heading of the
+optical axis about the object's vertical, rad; x = y = 0, as ``attitude`` carries roll
+and pitch in x and y;
 :func:`accelcal_ros.p2p.solver.yaw_from_rotation`), ``pose_candidates``
 (geometry_msgs/PoseArray: every valid solution, also when ambiguous) and
 ``/diagnostics`` (the reason when there is no pose, detection quality). The logic is
@@ -43,7 +45,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
-from std_msgs.msg import Float64, Header
+from std_msgs.msg import Header
 
 
 def _pose_msg(solution):
@@ -65,7 +67,7 @@ class P2PNode(Node):
         self.params = ParameterSet(self, P2P_PARAMS, on_change=self._on_change)
         self.pipeline = P2PPipeline(self.params.values)
         self.pose_pub = self.create_publisher(PoseStamped, 'pose', 10)
-        self.yaw_pub = self.create_publisher(Float64, 'yaw', 10)
+        self.yaw_pub = self.create_publisher(Vector3Stamped, 'yaw', 10)
         self.candidates_pub = self.create_publisher(PoseArray, 'pose_candidates', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         qos = qos_profile_sensor_data
@@ -217,7 +219,9 @@ class P2PNode(Node):
         if result.resolved_by_continuity:
             self._counts['ambiguous_resolved'] += 1
         self.pose_pub.publish(PoseStamped(header=header, pose=_pose_msg(result.solution)))
-        self.yaw_pub.publish(Float64(data=float(result.solution.yaw)))
+        yaw = Vector3Stamped(header=header)
+        yaw.vector.z = float(result.solution.yaw)
+        self.yaw_pub.publish(yaw)
         if self._last_reason:
             self.get_logger().info('pose available again')
         self._last_reason = ''

@@ -81,11 +81,11 @@ def wait_for_reason(diag, fragment, probe, args, timeout=15.0):
 def test_p2p_node_publishes_poses_from_rendered_images(graph):
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped
-    from std_msgs.msg import Float64
+    from geometry_msgs.msg import Vector3Stamped
 
     proc = graph.start('p2p', params={'emitters': EMITTERS, 'threshold': 60})
     poses = graph.collect(PoseStamped, 'pose', 10)
-    yaws = graph.collect(Float64, 'yaw', 10)
+    yaws = graph.collect(Vector3Stamped, 'yaw', 10)
     diag = graph.collect(DiagnosticArray, '/diagnostics', 10)
     probe = Probe(graph)
     image, rotation, translation, roll, pitch = scene(150.0)
@@ -104,7 +104,10 @@ def test_p2p_node_publishes_poses_from_rendered_images(graph):
 
     got = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
     assert np.abs(got - rotation).max() < 2e-3
-    yaw = yaws.wait_for(1, timeout=5.0)[-1].data
+    yaw_msg = yaws.wait_for(1, timeout=5.0)[-1]
+    assert yaw_msg.header.frame_id == 'cam_optical'   # stamped like the pose
+    assert (yaw_msg.vector.x, yaw_msg.vector.y) == (0.0, 0.0)
+    yaw = yaw_msg.vector.z
     assert abs(yaw - solver.yaw_from_rotation(rotation)) < 2e-3
     assert yaw == pytest.approx(np.radians(150.0), abs=2e-3)
     status = [s for m in diag.wait_for(1)[-1:] for s in m.status if s.name.startswith('p2p')]
