@@ -33,7 +33,7 @@ def test_cloud_assembler_warns_without_boresight_and_reports_write_failures(grap
     folder = tmp_path / 'out'
     folder.mkdir()
     proc = graph.start('cloud_assembler', params={'output_file': str(folder / 'map.ply')})
-    status = _wait_status(diagnostics, 'cloud_assembler:')
+    status = _wait_status(diagnostics, 'cloud_assembler: georeferenced')
     values = {kv.key: kv.value for kv in status.values}
     assert status.level == b'\x01' and 'identity boresight' in status.message, status
     assert values['scans'] == '0' and values['boresight'] == 'identity (none given)'
@@ -48,7 +48,7 @@ def test_cloud_assembler_warns_without_boresight_and_reports_write_failures(grap
     assert any('[ERROR]' in line and 'cannot write' in line
                for line in proc.output().splitlines()), proc.output()
     diagnostics.clear()
-    status = _wait_status(diagnostics, 'cloud_assembler:')
+    status = _wait_status(diagnostics, 'cloud_assembler: georeferenced')
     assert status.level == b'\x02' and status.message.startswith('cannot write')
 
 
