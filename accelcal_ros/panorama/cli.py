@@ -19,6 +19,19 @@ if TYPE_CHECKING:  # pragma: no cover - annotations only
 PathLike = Union[str, 'os.PathLike[str]']
 
 
+def video_fps(bag: Any, topic: str, t: Any, requested: Any) -> float:
+    """``--fps``, else the first camera topic's message rate over the attitude span (1-120)."""
+    import numpy as np
+
+    if requested is not None:
+        return float(requested)
+    first = bag.select_topic(topic, ('sensor_msgs/Image', 'sensor_msgs/CompressedImage'),
+                             '--images')
+    count = bag.topics()[first].count
+    span = (t[-1] - t[0]) if len(t) > 1 else 0.0
+    return float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
+
+
 def add_rig_attitude_arguments(p: Any) -> None:
     """``--rig`` and the reference camera's ``--roll``/``--pitch`` (stitch and view)."""
     p.add_argument('--rig', required=True, help='rig YAML (cameras: name, width, height, '
@@ -187,7 +200,6 @@ def _stitch_bag(args):
     from accelcal_ros.recording.cli_support import open_bag, warn
     from accelcal_ros.panorama.bag import FrameSink, stitch_recording
     from accelcal_ros.recording.streams import attitude_series
-    import numpy as np
 
     rig = load_rig(args.rig)
     topics = args.image_topics or [None]
@@ -206,13 +218,7 @@ def _stitch_bag(args):
     with open_bag(args.images[0], args.stamp) as bag:
         t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
         warn(warnings)
-        fps = args.fps
-        if fps is None:
-            first = bag.select_topic(topics[0], ('sensor_msgs/Image',
-                                                 'sensor_msgs/CompressedImage'), '--images')
-            count = bag.topics()[first].count
-            span = (t[-1] - t[0]) if len(t) > 1 else 0.0
-            fps = float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
+        fps = video_fps(bag, topics[0], t, args.fps)
         sink = FrameSink(args.output, fps)
         ok = False
         try:

@@ -209,6 +209,7 @@ def _view_bag(args: Any) -> int:
     """One levelled view per frame set of a recorded rig (video or PNG folder)."""
     from accelcal_ros.camera.rig import load_rig
     from accelcal_ros.panorama.bag import FrameSink, stitch_recording
+    from accelcal_ros.panorama.cli import video_fps
     from accelcal_ros.recording.cli_support import open_bag, warn
     from accelcal_ros.recording.streams import attitude_series
 
@@ -227,13 +228,7 @@ def _view_bag(args: Any) -> int:
     with open_bag(args.images[0], args.stamp) as bag:
         t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
         warn(warnings)
-        fps = args.fps
-        if fps is None:
-            first = bag.select_topic(topics[0], ('sensor_msgs/Image',
-                                                 'sensor_msgs/CompressedImage'), '--images')
-            count = bag.topics()[first].count
-            span = (t[-1] - t[0]) if len(t) > 1 else 0.0
-            fps = float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
+        fps = video_fps(bag, topics[0], t, args.fps)
         sink = FrameSink(args.output, fps)
         ok = False
         try:
