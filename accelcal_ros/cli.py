@@ -18,7 +18,7 @@ import argparse
 import importlib
 import os
 import sys
-from typing import List, NoReturn, Optional, Sequence
+from typing import Any, List, NoReturn, Optional, Sequence
 
 from accelcal_ros.errors import AccelcalError, InputError
 
@@ -64,6 +64,23 @@ def fit_package_calibrations(count: int, seed: int = 0) -> list:
                               layout='recommended', model='full'))
 
 
+def panorama_horizon_errors(true_rp: Any, estimates: Any, label: str = '') -> dict:
+    """
+    Return the panorama's horizon errors through a drive (``args.panorama_horizon``).
+
+    ``true_rp`` ``(N, 2)`` and ``estimates`` ``{name: (N, 2)}`` (roll, pitch in rad at the
+    frame times): :func:`accelcal_ros.panorama.horizon_track.drive_horizon_errors`, plus
+    its table under ``'table'``. ``accelcal study motion`` (attitude feature) gets it from
+    the dispatcher because features never import each other.
+    """
+    from accelcal_ros.panorama.horizon_track import drive_horizon_errors, format_drive_horizon
+    from accelcal_ros.recording.progress import track
+
+    result = drive_horizon_errors(true_rp, estimates, progress=track)
+    result['table'] = format_drive_horizon(result, label)
+    return result
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (status 2)."""
 
@@ -80,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
         description='ADXL345 field calibration, attitude, panorama stitching, P2P '
                     'positioning and LiDAR-IMU boresight calibration on recorded data.',
         epilog=EPILOG)
-    parser.set_defaults(fit_calibrations=fit_package_calibrations)
+    parser.set_defaults(fit_calibrations=fit_package_calibrations,
+                        panorama_horizon=panorama_horizon_errors)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     study = sub.add_parser('study', help='accuracy studies against ground truth and the papers')

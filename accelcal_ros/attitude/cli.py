@@ -5,7 +5,10 @@ Offline commands of the attitude feature.
   roll/pitch error through a simulated drive for accelerometer only, + odometry, + gyro,
   + both, beside the ``imufusion``/``ahrs`` anchors (:mod:`accelcal_ros.attitude.study`);
   optionally writes the drive as a recording (``t,ax,ay,az,gx,gy,gz``; s, m/s^2, rad/s)
-  and its odometry (``t,v,yaw_rate``) for ``accelcal attitude``.
+  and its odometry (``t,v,yaw_rate``) for ``accelcal attitude``. Then the panorama's
+  horizon error through the drive, measured on stitched frames (``--panorama-every``):
+  the ``accelcal`` dispatcher's ``args.panorama_horizon`` renders and stitches them
+  (:mod:`accelcal_ros.panorama.horizon_track`; features never import each other).
 
 (``accelcal attitude REC`` itself is registered by the calibration feature's commands.)
 """
@@ -27,6 +30,9 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--drive-out', help="also write the (first rate's) drive as a CSV "
                    'recording t,ax,ay,az,gx,gy,gz (s, m/s^2, rad/s)')
     p.add_argument('--odometry-out', help='also write its odometry as CSV t,v,yaw_rate')
+    p.add_argument('--panorama-every', type=nonnegative_int, default=10, metavar='N',
+                   help='panorama horizon through the drive: stitch every N-th frame of a '
+                   '25 fps video with each estimate (default 10; 0: skip)')
     p.set_defaults(handler=_study)
 
 
@@ -46,10 +52,37 @@ def _study(args):
         verdict = study.check_targets(rows)
         for line in verdict:
             print(line)
+        if args.panorama_every:
+            for line in _panorama_horizon(args, rate):
+                print(line)
         print()
     if args.drive_out or args.odometry_out:
         _write_drive(args)
     return status
+
+
+PANORAMA_AIDS = (('accel only', False, False), ('+ odometry', False, True),
+                 ('+ gyro', True, False), ('+ gyro + odometry', True, True))
+"""The package's estimators whose attitude the panorama horizon is measured with."""
+
+
+def _panorama_horizon(args, rate):
+    """Return the table of the drive's panorama horizon error per aid (stitched frames)."""
+    from accelcal_ros.attitude import study
+    from accelcal_ros.sensor.drive_sim import simulate_drive
+    import numpy as np
+
+    drive = simulate_drive(rate_hz=rate, seed=args.seed)
+    period = args.panorama_every / 25.0
+    times = np.arange(study.SETTLE_S, drive.t[-1], period)
+    index = np.searchsorted(drive.t, times, side='right') - 1   # the newest estimate
+    truth = np.column_stack([drive.roll[index], drive.pitch[index]])
+    estimates = {}
+    for name, gyro, odometry in PANORAMA_AIDS:
+        roll, pitch = study._package(drive, gyro, odometry)
+        estimates[name] = np.column_stack([roll[index], pitch[index]])
+    label = f' at {rate:g} Hz ({1.0 / period:g} fps)'
+    return args.panorama_horizon(truth, estimates, label)['table']
 
 
 def _write_drive(args):
