@@ -92,3 +92,9 @@ def test_study_motion_reports_the_stitched_horizon_per_aid(capsys):
     assert rows['accel only'][1] > 10.0 * rows['+ gyro'][1]
     assert rows['+ gyro'][1] < 3.0   # px at 137.5 px/rad: p95 tilt error < 1.25 deg
     assert math.isfinite(rows['+ gyro + odometry'][2])
+
+
+def test_study_motion_without_the_panorama(capsys):
+    assert main(['study', 'motion', '--no-anchors', '--panorama-every', '0']) == 0
+    out = capsys.readouterr().out
+    assert 'Simulated drive at 100 Hz' in out and 'Panorama horizon' not in out
