@@ -279,14 +279,16 @@ class ViewServer:
             def render() -> Tuple[bytes, Dict[str, Any]]:
                 with self.views.lock:
                     view = self.views.views[name]
-                    image = view.render(self.views.mosaic.image)
+                    image = self.views.render_view(view)
                     az, el, fov = view.pose.degrees()
                     info = {'az': az, 'el': el, 'fov': fov, 'width': view.width,
                             'height': view.height, 'horizon_row': view.horizon_row(),
                             'covered': view.covered_fraction(), 'frame': seen_frame,
                             'name': name}
-                    ok, jpeg = cv2.imencode('.jpg', image,
-                                            [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+                # the view's buffer is only rendered again by this tab, after this frame:
+                # encode outside the lock, so that other tabs render meanwhile
+                ok, jpeg = cv2.imencode('.jpg', image,
+                                        [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
                 if not ok:
                     raise InputError('JPEG encoding failed')
                 return jpeg.tobytes(), info

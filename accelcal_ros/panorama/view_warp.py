@@ -1,0 +1,245 @@
+r"""
+A levelled view rendered by one homography per camera (no lookup map to rebuild).
+
+A view pixel ``p = (u, v, 1)`` has the ray ``A_i T p`` in camera ``i``, with
+``A_i = Q_i R_PV diag(1, 1, f)`` (:meth:`.view.ViewLookupBuilder.camera_rotations`: the
+panorama's eq. 7 tilt, the view's direction and zoom) and ``T`` the shift by
+``(c_x, c_y)``. Up to the lens, that is a homography: in the camera's *undistorted*
+image plane (a pinhole camera ``K_u``) the view pixel lands on ``K_u A_i T p``. So:
+
+1. Each camera's undistorted plane is resampled from the mosaic through a fixed map
+   built once from the rig's lens model (:meth:`~.rig_projection.RigProjection.evaluate`
+   with that camera only: the same ``K_i``, ``D_i``, validity limit and "outside the
+   frame is black" rule as the panorama, no second copy), and only over the rectangle
+   the views need, once per frame set for all the views that share it
+   (:class:`CameraPlanes`).
+2. The camera choice (eq. 6: the largest ``z``) between cameras ``i`` and ``j`` is
+   ``(a_i - a_j) T p >= 0`` with ``a_i`` the third row of ``A_i``: a half-plane of the
+   view. Camera ``i``'s pixels are the view's rectangle clipped by those half-planes,
+   by ``z_i > 0`` and by the four half-planes of its undistorted plane's extent: a
+   convex region, per row one interval of columns (:class:`WarpPlan`). Each region is
+   filled by
+   ``cv2.warpPerspective`` of the camera's plane (the view's map is computed on the fly
+   in OpenCV, tile by tile, never stored), under a mask where polygons share a
+   rectangle.
+
+The geometry is exact (no interpolation of a map); the price is a second resampling
+of the image (the undistortion, at ``plane_scale`` times the camera's focal length:
+1.25 by default), a slight blur measured by ``test/panorama/test_view.py`` against
+rendered ground truth. A pixel within half a pixel of a seam may take the other
+camera of the seam (the polygon's rasterisation), which sees the same ray.
+"""
+import math
+from typing import Any, cast, Dict, List, Optional, Sequence, Tuple
+
+from accelcal_ros.panorama.mosaic import OUTSIDE
+from accelcal_ros.panorama.rig_projection import frame_border_pixels, normalized_from_pixels
+import numpy as np
+
+Rect = Tuple[int, int, int, int]
+"""``(x0, y0, x1, y1)``, end exclusive."""
+DEFAULT_PLANE_SCALE = 1.25
+"""Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
+
+
+class CameraPlanes:
+    """
+    The rig cameras' undistorted image planes, resampled from a mosaic on demand.
+
+    ``projection`` is a :class:`~.rig_projection.RigProjection` over the mosaic layout
+    (a view's builder); ``plane_scale`` sets each plane's focal length to that many times
+    the camera's larger one. Planes are filled per frame set: :meth:`prepare` resamples
+    the rectangles asked for that are not done yet for that ``version`` of the mosaic.
+    """
+
+    def __init__(self, projection: Any, plane_scale: float = DEFAULT_PLANE_SCALE) -> None:
+        import cv2
+
+        self._cv2 = cv2
+        rig = projection.rig
+        offsets = np.asarray(projection.layout.offsets, np.float32)
+        self.intrinsics: List[np.ndarray] = []
+        self.sizes: List[Tuple[int, int]] = []
+        self.maps: List[Tuple[np.ndarray, np.ndarray]] = []
+        self.extents: List[Tuple[float, float, float, float]] = []
+        identity = np.repeat(np.eye(3)[None], len(rig), axis=0)
+        for i, cam in enumerate(rig.cameras):
+            xn, yn = normalized_from_pixels(cam, *frame_border_pixels(cam, 1.0))
+            f = plane_scale * max(cam.K[0, 0], cam.K[1, 1])
+            x0, x1 = float(xn.min()), float(xn.max())
+            y0, y1 = float(yn.min()), float(yn.max())
+            width = int(math.ceil((x1 - x0) * f)) + 3
+            height = int(math.ceil((y1 - y0) * f)) + 3
+            k = np.array([[f, 0.0, 1.0 - x0 * f], [0.0, f, 1.0 - y0 * f], [0.0, 0.0, 1.0]])
+            ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+            rays = np.stack([(xs - k[0, 2]) / f, (ys - k[1, 2]) / f,
+                             np.ones_like(xs)]).reshape(3, -1)
+            _, px, py, side = projection._evaluate_soa(
+                np.ascontiguousarray(rays, np.float32), identity, only=i)
+            px, py = px.reshape(height, width), py.reshape(height, width)
+            side = side.reshape(height, width)
+            # A plane pixel is black unless its point is farther inside the frame's
+            # bilinear support than one plane pixel spans: a view pixel whose point lies
+            # outside that support (black in the lookup) then reads black plane pixels
+            # only, whichever of them surround it.
+            span = self._span(px, py, side == 0)
+            outside = (side != 0) | (px <= span - 1.0) | (px >= cam.width - span) | \
+                (py <= span - 1.0) | (py >= cam.height - span)
+            fine = np.stack([px + offsets[i, 0], py + offsets[i, 1]], axis=-1)
+            fine[outside] = OUTSIDE
+            self.maps.append(cv2.convertMaps(fine, cast(Any, None), cv2.CV_16SC2))
+            self.intrinsics.append(k)
+            self.sizes.append((width, height))
+            # the plane's extent in normalized coordinates (its pixel edges)
+            self.extents.append(((-0.5 - k[0, 2]) / f, (width - 0.5 - k[0, 2]) / f,
+                                 (-0.5 - k[1, 2]) / f, (height - 0.5 - k[1, 2]) / f))
+        self.images: Optional[List[np.ndarray]] = None
+        self._done: List[Optional[Rect]] = [None] * len(rig)
+        self._version: Any = object()
+
+    @staticmethod
+    def _span(px: np.ndarray, py: np.ndarray, valid: np.ndarray) -> float:
+        """Largest camera-pixel step between diagonal neighbours of the plane (valid ones)."""
+        both = valid[1:, 1:] & valid[:-1, :-1] & valid[1:, :-1] & valid[:-1, 1:]
+        if not both.any():
+            return 0.0
+        steps = [np.abs(px[1:, :-1] - px[:-1, :-1]) + np.abs(px[:-1, 1:] - px[:-1, :-1]),
+                 np.abs(py[1:, :-1] - py[:-1, :-1]) + np.abs(py[:-1, 1:] - py[:-1, :-1])]
+        return 1.01 * max(float(step[both].max()) for step in steps)
+
+    def prepare(self, mosaic: np.ndarray, needs: Dict[int, Rect], version: Any = None) -> None:
+        """
+        Resample the rectangles ``needs`` (camera -> plane rectangle) from ``mosaic``.
+
+        With ``version`` (any value that changes with the mosaic's content), rectangles
+        done earlier for the same version are reused; None resamples every time.
+        """
+        cv2 = self._cv2
+        channels = mosaic.shape[2:]
+        if self.images is None or self.images[0].shape[2:] != channels or \
+                self.images[0].dtype != mosaic.dtype:
+            self.images = [np.zeros((h, w) + channels, mosaic.dtype) for w, h in self.sizes]
+            self._version = object()
+        if version is None or version != self._version:
+            self._done = [None] * len(self._done)
+            self._version = object() if version is None else version
+        for i, (x0, y0, x1, y1) in needs.items():
+            done = self._done[i]
+            if done is not None:
+                if done[0] <= x0 and done[1] <= y0 and x1 <= done[2] and y1 <= done[3]:
+                    continue
+                x0, y0 = min(x0, done[0]), min(y0, done[1])
+                x1, y1 = max(x1, done[2]), max(y1, done[3])
+            map1, map2 = self.maps[i]
+            cv2.remap(mosaic, map1[y0:y1, x0:x1], map2[y0:y1, x0:x1], cv2.INTER_LINEAR,
+                      dst=self.images[i][y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0)
+            self._done[i] = (x0, y0, x1, y1)
+
+
+class WarpPlan:
+    """
+    Where each camera fills a view: pixel rows, homographies, plane rectangles (one pose).
+
+    ``rotations`` are ``A_i`` (n, 3, 3): view pixel offsets ``(u - c_x, v - c_y, 1)`` ->
+    camera ``i``; ``planes`` the :class:`CameraPlanes`. Camera ``i``'s pixels are those
+    whose centres satisfy every one of its half-planes (in front, eq. 6 against each
+    other camera, within its plane): per row an interval of columns, the region being
+    convex.
+    """
+
+    def __init__(self, rotations: np.ndarray, planes: CameraPlanes, width: int, height: int,
+                 cx: float, cy: float) -> None:
+        shift = np.array([[1.0, 0.0, -cx], [0.0, 1.0, -cy], [0.0, 0.0, 1.0]])
+        a = np.asarray(rotations, float) @ shift  # view pixel (u, v, 1) -> camera i
+        n = len(a)
+        self.width, self.height = width, height
+        self.parts: List[Tuple[int, np.ndarray, Rect, np.ndarray, bool]] = []
+        self.needs: Dict[int, Rect] = {}
+        z = a[:, 2]
+        ext = np.asarray(planes.extents)  # (n, 4): x0, x1, y0, y1
+        front = z.copy()
+        front[:, 2] -= 1e-9 * max(width, height) * np.abs(z).sum(axis=1)
+        lines = np.concatenate([
+            front[:, None], z[:, None] - z[None, :],
+            (a[:, 0] - ext[:, 0:1] * z)[:, None], (ext[:, 1:2] * z - a[:, 0])[:, None],
+            (a[:, 1] - ext[:, 2:3] * z)[:, None], (ext[:, 3:4] * z - a[:, 1])[:, None]],
+            axis=1)  # (n, 1 + n + 4, 3); camera i against itself: 0 >= 0, always true
+        v = np.arange(height, dtype=float)
+        coef = lines[..., 0:1]
+        rest = lines[..., 1:2] * v + lines[..., 2:3]  # (n, lines, rows)
+        tiny = 1e-12 * (np.abs(lines).sum(axis=2, keepdims=True) + 1e-300)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            bound = -rest / coef
+        lo = np.where(coef > tiny, np.ceil(bound), 0.0).max(axis=1)
+        hi = np.where(coef < -tiny, np.floor(bound), width - 1.0).min(axis=1)
+        flat_out = ((np.abs(coef) <= tiny) & (rest < 0)).any(axis=1)
+        lo = np.maximum(lo, 0.0)
+        hi = np.minimum(hi, width - 1.0)
+        hi[flat_out] = -1.0
+        for i in range(n):
+            rows = np.nonzero(lo[i] <= hi[i])[0]
+            if rows.size == 0:
+                continue
+            y0, y1 = int(rows[0]), int(rows[-1]) + 1
+            li, hi_i = lo[i, y0:y1].astype(np.int32), hi[i, y0:y1].astype(np.int32)
+            x0, x1 = int(li.min()), int(hi_i.max()) + 1
+            h = planes.intrinsics[i] @ a[i]  # view pixel -> plane pixel
+            # the plane rectangle the region needs (the hull of its rows' ends, mapped),
+            # with the bilinear taps
+            ends = np.stack([np.concatenate([li, hi_i]).astype(float),
+                             np.tile(np.arange(y0, y1, dtype=float), 2),
+                             np.ones(2 * (y1 - y0))])
+            mapped = h @ ends
+            px, py = mapped[0] / mapped[2], mapped[1] / mapped[2]
+            pw, ph = planes.sizes[i]
+            need = (max(0, int(math.floor(px.min())) - 2), max(0, int(math.floor(py.min())) - 2),
+                    min(pw, int(math.ceil(px.max())) + 3), min(ph, int(math.ceil(py.max())) + 3))
+            if need[2] <= need[0] or need[3] <= need[1]:
+                continue
+            self.needs[i] = need
+            whole = bool((li == x0).all() and (hi_i == x1 - 1).all())
+            # the pixels whose centres lie in the region: a polygon through them, row by
+            # row (cv2.fillPoly is exact at vertices on pixel centres)
+            k = np.arange(y1 - y0, dtype=np.int32)
+            outline = np.concatenate([np.stack([li - x0, k], axis=1),
+                                      np.stack([hi_i - x0, k], axis=1)[::-1]])
+            m = h @ np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
+            self.parts.append((i, m, (x0, y0, x1, y1), outline, whole))
+        self.single = len(self.parts) == 1 and self.parts[0][4] and \
+            self.parts[0][2] == (0, 0, width, height)
+
+    def render(self, planes: CameraPlanes, out: np.ndarray,
+               scratch: Optional[np.ndarray] = None) -> None:
+        """Fill ``out`` (H, W[, C]) from the planes (prepared for :attr:`needs`)."""
+        import cv2
+
+        assert planes.images is not None
+        if not self.single:
+            out[...] = 0
+        flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+        for i, m, (x0, y0, x1, y1), poly, whole in self.parts:
+            src = planes.images[i]
+            if whole:
+                cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=out[y0:y1, x0:x1],
+                                    flags=flags, borderMode=cv2.BORDER_CONSTANT,
+                                    borderValue=0)
+                continue
+            assert scratch is not None
+            part = scratch[y0:y1, x0:x1]
+            cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=part, flags=flags,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            cv2.fillPoly(mask, [poly], 255, lineType=cv2.LINE_8)
+            cv2.copyTo(part, mask, out[y0:y1, x0:x1])
+
+
+def needs_union(plans: Sequence[WarpPlan]) -> Dict[int, Rect]:
+    """Return the plane rectangles covering every plan's needs (camera -> rectangle)."""
+    union: Dict[int, Rect] = {}
+    for plan in plans:
+        for i, r in plan.needs.items():
+            u = union.get(i)
+            union[i] = r if u is None else (min(u[0], r[0]), min(u[1], r[1]),
+                                            max(u[2], r[2]), max(u[3], r[3]))
+    return union
