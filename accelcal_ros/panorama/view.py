@@ -36,7 +36,7 @@ error is within ``tolerance_px`` camera pixels (checked at its centre and edge m
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
 map). The lookup is rebuilt only when the view's rotation in the cameras moves by more
 than ``rebuild_threshold_deg`` or the zoom changes; otherwise a frame is one
-``cv2.remap`` (16-bit fixed-point maps after two frames on one lookup, as the stitcher).
+``cv2.remap`` (16-bit fixed-point maps, converted once per lookup).
 Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` reports how many
 are seen.
 """
@@ -209,6 +209,8 @@ class ViewLookupBuilder(LookupBuilder):
     the ``(H, W, 2)`` map.
     """
 
+    resize_in_worker = False
+
     def __init__(self, rig: Any, width: int, height: int, layout: MosaicLayout,
                  imu_to_camera: ArrayLike, grid_step: int = 16,
                  tolerance_px: float = 0.1) -> None:
@@ -369,6 +371,7 @@ class LevelledView:
         self._covered: Optional[float] = None
         self._out: Optional[np.ndarray] = None
         self._scratch: Optional[np.ndarray] = None
+        self._canvas: Any = None
         self.rebuild_count = 0
 
     @property
@@ -481,9 +484,11 @@ class LevelledView:
             plan = self.plan()
             planes = self.shared_planes()
             planes.prepare(mosaic, plan.needs, version)
-            if not plan.single and (self._scratch is None or self._scratch.shape != shape):
-                self._scratch = np.zeros(shape, np.uint8)
-            plan.render(planes, self._out, self._scratch)
+            work = (self.height, self.width, 4) if len(shape) == 3 else shape
+            if self._scratch is None or self._scratch.shape != work:
+                self._scratch = np.zeros(work, np.uint8)
+                self._canvas = np.zeros(work, np.uint8) if len(shape) == 3 else self._out
+            plan.render(planes, self._out, self._canvas, self._scratch)
             return self._out
         if self._map is None:
             self._build_map()
@@ -500,14 +505,10 @@ class LevelledView:
             return out
         fine = self._map
         assert fine is not None
-        if self._fixed is None and self._frames_on_map >= 3:
+        if self._fixed is None:  # converting costs less than a remap from floats saves
             self._fixed = cv2.convertMaps(fine[r0:r1], None, cv2.CV_16SC2)
-        if self._fixed is not None:
-            cv2.remap(mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
-                      dst=out[r0:r1], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        else:
-            cv2.remap(mosaic, fine[r0:r1], None, cv2.INTER_LINEAR, dst=out[r0:r1],
-                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        cv2.remap(mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
+                  dst=out[r0:r1], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return out
 
     def covered_fraction(self) -> float:
