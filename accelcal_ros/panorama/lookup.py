@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
-    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import Future, ThreadPoolExecutor
 
     from accelcal_ros.camera.rig import Rig
     from accelcal_ros.panorama.projection import PanoramaGeometry
@@ -387,18 +387,20 @@ class LookupBuilder(MapBuilder):
         coarse = node_map[k0:k1 + 3]
         # The resize (OpenCV, no GIL) runs while numpy computes the cells it cannot do;
         # those are written into the buffer once it is done.
-        resize_args = (cv2.resize, coarse, ((tw + 2) * s, (k1 - k0 + 3) * s))
-        resize_kwargs = {'dst': buf[k0 * s:(k1 + 3) * s], 'interpolation': cv2.INTER_LINEAR}
+        def resize() -> None:
+            cv2.resize(coarse, ((tw + 2) * s, (k1 - k0 + 3) * s),
+                       dst=buf[k0 * s:(k1 + 3) * s], interpolation=cv2.INTER_LINEAR)
+
+        resized: Optional['Future[None]'] = None
         if not self.resize_in_worker:
-            resize_args[0](*resize_args[1:], **resize_kwargs)
-            resized = None
+            resize()
         else:
             if self._resize_pool is None:
                 from concurrent.futures import ThreadPoolExecutor
 
                 self._resize_pool = ThreadPoolExecutor(max_workers=1,
                                                        thread_name_prefix='lookup_resize')
-            resized = self._resize_pool.submit(*resize_args, **resize_kwargs)
+            resized = self._resize_pool.submit(resize)
         # cell (a, b) covers panorama pixels [a s - s/2, a s + s/2) x [b s - s/2, ...)
         blocks = self._blocks(buf[half:half + (th + 1) * s, half:half + (tw + 1) * s],
                               th + 1, s, tw + 1, s)
