@@ -25,7 +25,7 @@ image plane (a pinhole camera ``K_u``) the view pixel lands on ``K_u A_i T p``. 
 
 The geometry is exact (no interpolation of a map); the price is a second resampling
 of the image (the undistortion, at ``plane_scale`` times the camera's focal length:
-1.25 by default), a slight blur measured by ``test/panorama/test_view.py`` against
+1.5 by default), a slight blur measured by ``test/panorama/test_view.py`` against
 rendered ground truth. A pixel within half a pixel of a seam may take the other
 camera of the seam (the polygon's rasterisation), which sees the same ray.
 """
@@ -38,7 +38,7 @@ import numpy as np
 
 Rect = Tuple[int, int, int, int]
 """``(x0, y0, x1, y1)``, end exclusive."""
-DEFAULT_PLANE_SCALE = 1.25
+DEFAULT_PLANE_SCALE = 1.5
 """Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
 
 
