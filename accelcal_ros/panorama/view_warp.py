@@ -127,20 +127,29 @@ class CameraPlanes:
         if version is None or version != self._version:
             self._done = [None] * len(self._done)
             self._version = object() if version is None else version
-        for i, (x0, y0, x1, y1) in needs.items():
+        for i, need in needs.items():
             done = self._done[i]
-            if done is not None:
-                if done[0] <= x0 and done[1] <= y0 and x1 <= done[2] and y1 <= done[3]:
+            if done is None:
+                parts, done = [need], need
+            else:
+                # grow the done rectangle to hold the need: resample only what is new
+                # (a view moving over one frame set resamples a strip, not its whole need)
+                u = (min(need[0], done[0]), min(need[1], done[1]), max(need[2], done[2]),
+                     max(need[3], done[3]))
+                parts = [(u[0], u[1], u[2], done[1]), (u[0], done[3], u[2], u[3]),
+                         (u[0], done[1], done[0], done[3]), (done[2], done[1], u[2], done[3])]
+                done = u
+            for x0, y0, x1, y1 in parts:
+                if x1 <= x0 or y1 <= y0:
                     continue
-                x0, y0 = min(x0, done[0]), min(y0, done[1])
-                x1, y1 = max(x1, done[2]), max(y1, done[3])
-            map1, map2 = self.maps[i]
-            staged = self._staging[i][y0:y1, x0:x1]
-            cv2.remap(mosaic, map1[y0:y1, x0:x1], map2[y0:y1, x0:x1], cv2.INTER_LINEAR,
-                      dst=staged, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            if colour:  # OpenCV warps 4 channels about twice as fast as 3
-                cv2.cvtColor(staged, cv2.COLOR_BGR2BGRA, dst=self.images[i][y0:y1, x0:x1])
-            self._done[i] = (x0, y0, x1, y1)
+                map1, map2 = self.maps[i]
+                staged = self._staging[i][y0:y1, x0:x1]
+                cv2.remap(mosaic, map1[y0:y1, x0:x1], map2[y0:y1, x0:x1], cv2.INTER_LINEAR,
+                          dst=staged, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                if colour:  # OpenCV warps 4 channels about twice as fast as 3
+                    cv2.cvtColor(staged, cv2.COLOR_BGR2BGRA,
+                                 dst=self.images[i][y0:y1, x0:x1])
+            self._done[i] = done
 
 
 class WarpPlan:
