@@ -38,6 +38,9 @@ import numpy as np
 
 Rect = Tuple[int, int, int, int]
 """``(x0, y0, x1, y1)``, end exclusive."""
+SLIVER_BAND_WIDTH = 48
+"""A sliver of a camera's part wider than this (px) is drawn in :data:`SLIVER_BANDS` bands."""
+SLIVER_BANDS = 4
 DEFAULT_PLANE_SCALE = 1.5
 """Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
 
@@ -247,11 +250,19 @@ class WarpPlan:
         if rows.size == 0:
             return
         k0, k1 = int(rows[0]), int(rows[-1]) + 1  # a convex region: one run of rows
-        a, b = a[k0:k1] - s0, b[k0:k1] - s0
-        # cv2.fillPoly is exact at vertices on pixel centres: one on each end of each row
-        k = np.arange(k1 - k0, dtype=np.int32)
-        outline = np.concatenate([np.stack([a, k], axis=1), np.stack([b, k], axis=1)[::-1]])
-        self._piece(i, h, (s0, y0 + k0, s1, y0 + k1), outline.astype(np.int32))
+        # a wide sliver (a slanted seam) is cut into bands of rows, each drawn over its
+        # own columns only
+        bands = 1 if s1 - s0 <= SLIVER_BAND_WIDTH else SLIVER_BANDS
+        step = -(-(k1 - k0) // bands)
+        for r0 in range(k0, k1, step):
+            r1 = min(k1, r0 + step)
+            ba, bb = a[r0:r1], b[r0:r1]
+            c0, c1 = int(ba.min()), int(bb.max()) + 1
+            # cv2.fillPoly is exact at vertices on pixel centres: one on each end of a row
+            k = np.arange(r1 - r0, dtype=np.int32)
+            outline = np.concatenate([np.stack([ba - c0, k], axis=1),
+                                      np.stack([bb - c0, k], axis=1)[::-1]])
+            self._piece(i, h, (c0, y0 + r0, c1, y0 + r1), outline.astype(np.int32))
 
     def render(self, planes: CameraPlanes, out: np.ndarray, canvas: np.ndarray,
                scratch: np.ndarray) -> None:
