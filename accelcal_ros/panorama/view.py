@@ -29,16 +29,24 @@ by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all 
 offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
 and the zoom.
 
-The lookup (view pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast
-builder (:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
+A frame is drawn one of two ways (``renderer``). ``'warp'`` (the default while the view
+or the attitude moves): up to the lens, a view pixel's ray in camera ``i`` is a
+homography, so each camera's part of the view -- a convex region bounded by eq. 6's
+great circles, straight lines in a rectilinear view -- is one ``cv2.warpPerspective`` of
+that camera's undistorted image plane, resampled from the mosaic through a fixed map
+built from the same lens code, once per frame set for all the views sharing it
+(:mod:`.view_warp`); nothing is rebuilt when the view moves. ``'map'``: the lookup (view
+pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast builder
+(:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
 interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
 error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
-map). The lookup is rebuilt only when the view's rotation in the cameras moves by more
-than ``rebuild_threshold_deg`` or the zoom changes; otherwise a frame is one
-``cv2.remap`` (16-bit fixed-point maps, converted once per lookup).
-Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` reports how many
-are seen.
+map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
+lookup). A ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
+builds its lookup and remaps from then on (a remap with a ready map is the cheapest
+frame). The view follows the attitude and its pose only when its rotation in the
+cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
+camera sees are black; :meth:`LevelledView.covered_fraction` reports how many are seen.
 """
 from dataclasses import dataclass
 import math
