@@ -38,9 +38,9 @@ import numpy as np
 
 Rect = Tuple[int, int, int, int]
 """``(x0, y0, x1, y1)``, end exclusive."""
-SLIVER_BAND_WIDTH = 48
-"""A sliver of a camera's part wider than this (px) is drawn in :data:`SLIVER_BANDS` bands."""
-SLIVER_BANDS = 4
+BAND_ROWS = 240
+"""A camera's part of a view is drawn in bands of about this many rows (each band's
+straight rectangle as wide as its rows allow; the rest through a mask)."""
 DEFAULT_PLANE_SCALE = 1.5
 """Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
 
@@ -225,16 +225,23 @@ class WarpPlan:
             if need[2] <= need[0] or need[3] <= need[1]:
                 continue
             self.needs[i] = need
-            # the columns every row holds are drawn straight; the slivers left and right
-            # of them through a mask of the pixels whose centres lie in the region
-            inner0, inner1 = int(li.max()), int(hi_i.min()) + 1
-            if inner1 <= inner0:
-                inner0 = inner1 = x0
-            else:
-                self._piece(i, h, (inner0, y0, inner1, y1), None)
-            for s0, s1 in ((x0, inner0), (inner1, x1)):
-                if s1 > s0:
-                    self._sliver(i, h, s0, s1, y0, li, hi_i)
+            # per band of rows, the columns every row of the band holds are drawn
+            # straight; the slivers left and right of them through a mask of the pixels
+            # whose centres lie in the region (a slanted seam, a tapering corner)
+            count = y1 - y0
+            step = count if count <= 2 * BAND_ROWS else -(-count // -(-count // BAND_ROWS))
+            for r0 in range(0, count, step):
+                r1 = min(count, r0 + step)
+                bl, bh = li[r0:r1], hi_i[r0:r1]
+                b0, b1 = int(bl.min()), int(bh.max()) + 1
+                inner0, inner1 = int(bl.max()), int(bh.min()) + 1
+                if inner1 <= inner0:
+                    inner0 = inner1 = b0
+                else:
+                    self._piece(i, h, (inner0, y0 + r0, inner1, y0 + r1), None)
+                for s0, s1 in ((b0, inner0), (inner1, b1)):
+                    if s1 > s0:
+                        self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
         self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
             self.parts[0][2] == (0, 0, width, height)
 
@@ -250,19 +257,11 @@ class WarpPlan:
         if rows.size == 0:
             return
         k0, k1 = int(rows[0]), int(rows[-1]) + 1  # a convex region: one run of rows
-        # a wide sliver (a slanted seam) is cut into bands of rows, each drawn over its
-        # own columns only
-        bands = 1 if s1 - s0 <= SLIVER_BAND_WIDTH else SLIVER_BANDS
-        step = -(-(k1 - k0) // bands)
-        for r0 in range(k0, k1, step):
-            r1 = min(k1, r0 + step)
-            ba, bb = a[r0:r1], b[r0:r1]
-            c0, c1 = int(ba.min()), int(bb.max()) + 1
-            # cv2.fillPoly is exact at vertices on pixel centres: one on each end of a row
-            k = np.arange(r1 - r0, dtype=np.int32)
-            outline = np.concatenate([np.stack([ba - c0, k], axis=1),
-                                      np.stack([bb - c0, k], axis=1)[::-1]])
-            self._piece(i, h, (c0, y0 + r0, c1, y0 + r1), outline.astype(np.int32))
+        a, b = a[k0:k1] - s0, b[k0:k1] - s0
+        # cv2.fillPoly is exact at vertices on pixel centres: one on each end of each row
+        k = np.arange(k1 - k0, dtype=np.int32)
+        outline = np.concatenate([np.stack([a, k], axis=1), np.stack([b, k], axis=1)[::-1]])
+        self._piece(i, h, (s0, y0 + k0, s1, y0 + k1), outline.astype(np.int32))
 
     def render(self, planes: CameraPlanes, out: np.ndarray, canvas: np.ndarray,
                scratch: np.ndarray) -> None:
