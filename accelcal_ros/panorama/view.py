@@ -380,6 +380,8 @@ class LevelledView:
         self._out: Optional[np.ndarray] = None
         self._scratch: Optional[np.ndarray] = None
         self._canvas: Any = None
+        self.last_frame_key: Any = None
+        """What the frame in the buffer shows (set by :class:`~.view_set.ViewSet`)."""
         self.rebuild_count = 0
 
     @property
@@ -484,6 +486,7 @@ class LevelledView:
         camera sees are 0.
         """
         self.update()
+        self.last_frame_key = None
         shape = (self.height, self.width) + mosaic.shape[2:]
         if self._out is None or self._out.shape != shape:
             self._out = np.zeros(shape, np.uint8)
@@ -501,6 +504,16 @@ class LevelledView:
         if self._map is None:
             self._build_map()
         return self._render_map(mosaic)
+
+    def copy_frame(self, other: 'LevelledView', key: Any = None) -> np.ndarray:
+        """Take ``other``'s last frame (same pose, attitude and size) as this view's."""
+        self.update()
+        assert other._out is not None
+        if self._out is None or self._out.shape != other._out.shape:
+            self._out = np.empty_like(other._out)
+        np.copyto(self._out, other._out)
+        self.last_frame_key = key
+        return self._out
 
     def _render_map(self, mosaic: np.ndarray) -> np.ndarray:
         cv2 = self._cv2

@@ -84,6 +84,9 @@ class ViewSet:
         self.rebuild_threshold_deg = rebuild_threshold_deg
         self.views: Dict[str, LevelledView] = {}
         self.planes: Optional[CameraPlanes] = None  # shared by the views (view_warp)
+        self._drawn: Dict[Any, LevelledView] = {}  # frames drawn from this frame set
+        self._drawn_version: Any = None
+        self.shared_frames = 0
         self.attitude: Optional[Tuple[float, float]] = None
         self.stamp_s: Optional[float] = None
         self.lock = threading.RLock()
@@ -185,6 +188,20 @@ class ViewSet:
         """
         Return ``view`` of the current frame set (its own buffer; hold :attr:`lock`).
 
-        The views share each camera's undistorted plane, resampled once per frame set.
+        The views share each camera's undistorted plane, resampled once per frame set,
+        and a view posed exactly as another one already drawn from this frame set
+        copies that frame instead of drawing it again (:attr:`shared_frames` counts).
         """
-        return view.render(self.mosaic.image, self.mosaic.version)
+        key = (self.mosaic.version, view.pose, view.attitude, view.width, view.height)
+        if self._drawn_version != key[0]:
+            self._drawn.clear()
+            self._drawn_version = key[0]
+        twin = self._drawn.get(key)
+        if twin is not None and twin is not view and twin.last_frame_key == key and \
+                any(v is twin for v in self.views.values()):
+            self.shared_frames += 1
+            return view.copy_frame(twin, key)
+        image = view.render(self.mosaic.image, self.mosaic.version)
+        view.last_frame_key = key
+        self._drawn[key] = view
+        return image
