@@ -180,7 +180,7 @@ def part2(args, rig, images, pitch):
                                             time.thread_time)['v'])
         cpu[move] = (per_set - copy_ms) / 6
     print(f'\n  beside the stitcher {width}x{height} ({load()}), CPU ms per frame set '
-          f'(1 OpenCV thread): stitcher {stitch_ms:.1f}, frame set into the views\' mosaic '
+          f'(1 OpenCV thread): stitcher {stitch_ms:.1f}, frame set into the views mosaic '
           f'{copy_ms:.1f}, one {args.width}x{args.height} view + JPEG q80: still '
           f'{cpu[False]:.1f}, moving {cpu[True]:.1f}')
     print('  N views | CPU ms/frame set still | moving | of 80 (2 cores x 40 ms) | '

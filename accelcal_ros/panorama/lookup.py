@@ -387,6 +387,7 @@ class LookupBuilder(MapBuilder):
         coarse = node_map[k0:k1 + 3]
         # The resize (OpenCV, no GIL) runs while numpy computes the cells it cannot do;
         # those are written into the buffer once it is done.
+
         def resize() -> None:
             cv2.resize(coarse, ((tw + 2) * s, (k1 - k0 + 3) * s),
                        dst=buf[k0 * s:(k1 + 3) * s], interpolation=cv2.INTER_LINEAR)

@@ -107,8 +107,10 @@ class ViewServer:
 
     def frame_rate(self) -> float:
         """
-        Most frames per second a tab is drawn at: the playback rate, or live the rate
-        frame sets arrive at (:data:`LIVE_RATE_BOUNDS`; the upper bound until known).
+        Return the frame rate (Hz) tabs are paced by.
+
+        The playback rate, or live the rate frame sets arrive at (within
+        :data:`LIVE_RATE_BOUNDS`; the upper bound until known).
         """
         if not self.live:
             return self.fps

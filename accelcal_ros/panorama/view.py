@@ -425,7 +425,7 @@ class LevelledView:
         Follow the attitude and the view if they moved; return True if they did.
 
         The ``'map'`` renderer rebuilds its lookup; the ``'warp'`` one recomputes its
-        homographies and polygons (the lookup is then built only when asked for).
+        homographies and regions (the lookup is then built only when asked for).
         """
         if self.attitude is None:
             raise InputError('no attitude yet: call set_attitude() before rendering a view')
@@ -457,7 +457,7 @@ class LevelledView:
         return self.planes
 
     def plan(self) -> WarpPlan:
-        """Return the current :class:`~.view_warp.WarpPlan` (polygons and homographies)."""
+        """Return the current :class:`~.view_warp.WarpPlan` (regions and homographies)."""
         self.update()
         if self._plan is None:
             assert self.attitude is not None

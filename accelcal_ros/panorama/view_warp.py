@@ -15,22 +15,23 @@ image plane (a pinhole camera ``K_u``) the view pixel lands on ``K_u A_i T p``. 
    (:class:`CameraPlanes`).
 2. The camera choice (eq. 6: the largest ``z``) between cameras ``i`` and ``j`` is
    ``(a_i - a_j) T p >= 0`` with ``a_i`` the third row of ``A_i``: a half-plane of the
-   view. Camera ``i``'s pixels are the view's rectangle clipped by those half-planes,
-   by ``z_i > 0`` and by the four half-planes of its undistorted plane's extent: a
-   convex region, per row one interval of columns (:class:`WarpPlan`). Each region is
-   filled by
-   ``cv2.warpPerspective`` of the camera's plane (the view's map is computed on the fly
-   in OpenCV, tile by tile, never stored), under a mask where polygons share a
-   rectangle.
+   view (a great circle is a straight line in a rectilinear view). Camera ``i``'s pixels
+   are those whose centres satisfy its half-planes -- against every other camera, in
+   front (``z_i > 0``) and within its plane's extent --: a convex region, per row one
+   interval of columns (:class:`WarpPlan`). Each region is filled by
+   ``cv2.warpPerspective`` of the camera's plane (the view's map is computed inside
+   OpenCV tile by tile, never stored) in bands of rows: each band's columns that all its
+   rows hold straight, the rest through a mask of the region's pixels.
+3. Planes and warps use 4 channels for a colour view (OpenCV warps 8-bit 4-channel
+   images about twice as fast as 3-channel ones); the frame is converted back at the end.
 
 The geometry is exact (no interpolation of a map); the price is a second resampling
 of the image (the undistortion, at ``plane_scale`` times the camera's focal length:
 1.5 by default), a slight blur measured by ``test/panorama/test_view.py`` against
-rendered ground truth. A pixel within half a pixel of a seam may take the other
-camera of the seam (the polygon's rasterisation), which sees the same ray.
+rendered ground truth.
 """
 import math
-from typing import Any, cast, Dict, List, Optional, Sequence, Tuple
+from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
 from accelcal_ros.panorama.rig_projection import frame_border_pixels, normalized_from_pixels
@@ -170,10 +171,9 @@ class WarpPlan:
                  cx: float, cy: float) -> None:
         shift = np.array([[1.0, 0.0, -cx], [0.0, 1.0, -cy], [0.0, 0.0, 1.0]])
         a = np.asarray(rotations, float) @ shift  # view pixel (u, v, 1) -> camera i
-        n = len(a)
         self.width, self.height = width, height
-        # pieces: (camera, homography from the piece's origin, rectangle, outline of
-        # the pixels to take within it, or None for all of them)
+        # pieces: (camera, homography from the piece's origin, rectangle, the columns
+        # to take within it per row (2, rows: first, last), or None for all of them)
         self.parts: List[Tuple[int, np.ndarray, Rect, Optional[np.ndarray]]] = []
         self.needs: Dict[int, Rect] = {}
         z = a[:, 2]
@@ -210,7 +210,6 @@ class WarpPlan:
                 continue
             y0, y1 = int(rows[0]), int(rows[-1]) + 1
             li, hi_i = lo[c, y0:y1].astype(np.int32), hi[c, y0:y1].astype(np.int32)
-            x0, x1 = int(li.min()), int(hi_i.max()) + 1
             h = planes.intrinsics[i] @ a[i]  # view pixel -> plane pixel
             # the plane rectangle the region needs (the hull of its rows' ends, mapped),
             # with the bilinear taps
@@ -245,9 +244,9 @@ class WarpPlan:
         self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
             self.parts[0][2] == (0, 0, width, height)
 
-    def _piece(self, i: int, h: np.ndarray, rect: Rect, outline: Optional[np.ndarray]) -> None:
+    def _piece(self, i: int, h: np.ndarray, rect: Rect, columns: Optional[np.ndarray]) -> None:
         m = h @ np.array([[1.0, 0.0, rect[0]], [0.0, 1.0, rect[1]], [0.0, 0.0, 1.0]])
-        self.parts.append((i, m, rect, outline))
+        self.parts.append((i, m, rect, columns))
 
     def _sliver(self, i: int, h: np.ndarray, s0: int, s1: int, y0: int, lo: np.ndarray,
                 hi: np.ndarray) -> None:
@@ -257,11 +256,8 @@ class WarpPlan:
         if rows.size == 0:
             return
         k0, k1 = int(rows[0]), int(rows[-1]) + 1  # a convex region: one run of rows
-        a, b = a[k0:k1] - s0, b[k0:k1] - s0
-        # cv2.fillPoly is exact at vertices on pixel centres: one on each end of each row
-        k = np.arange(k1 - k0, dtype=np.int32)
-        outline = np.concatenate([np.stack([a, k], axis=1), np.stack([b, k], axis=1)[::-1]])
-        self._piece(i, h, (s0, y0 + k0, s1, y0 + k1), outline.astype(np.int32))
+        self._piece(i, h, (s0, y0 + k0, s1, y0 + k1),
+                    np.stack([a[k0:k1] - s0, b[k0:k1] - s0]))
 
     def render(self, planes: CameraPlanes, out: np.ndarray, canvas: np.ndarray,
                scratch: np.ndarray) -> None:
@@ -278,6 +274,7 @@ class WarpPlan:
         if not self.single:
             canvas[...] = 0
         flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+        ramp = np.arange(self.width)
         for i, m, (x0, y0, x1, y1), poly in self.parts:
             src = planes.images[i]
             if poly is None:
@@ -288,19 +285,8 @@ class WarpPlan:
             part = scratch[y0:y1, x0:x1]
             cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=part, flags=flags,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            cv2.fillPoly(mask, [poly], 255, lineType=cv2.LINE_8)
-            cv2.copyTo(part, mask, canvas[y0:y1, x0:x1])
+            columns = ramp[:x1 - x0]
+            mask = (columns >= poly[0][:, None]) & (columns <= poly[1][:, None])
+            cv2.copyTo(part, mask.view(np.uint8), canvas[y0:y1, x0:x1])
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)
-
-
-def needs_union(plans: Sequence[WarpPlan]) -> Dict[int, Rect]:
-    """Return the plane rectangles covering every plan's needs (camera -> rectangle)."""
-    union: Dict[int, Rect] = {}
-    for plan in plans:
-        for i, r in plan.needs.items():
-            u = union.get(i)
-            union[i] = r if u is None else (min(u[0], r[0]), min(u[1], r[1]),
-                                            max(u[2], r[2]), max(u[3], r[3]))
-    return union
