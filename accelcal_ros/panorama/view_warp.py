@@ -75,13 +75,21 @@ class CameraPlanes:
             width = int(math.ceil((x1 - x0) * f)) + 3
             height = int(math.ceil((y1 - y0) * f)) + 3
             k = np.array([[f, 0.0, 1.0 - x0 * f], [0.0, f, 1.0 - y0 * f], [0.0, 0.0, 1.0]])
-            ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
-            rays = np.stack([(xs - k[0, 2]) / f, (ys - k[1, 2]) / f,
-                             np.ones_like(xs)]).reshape(3, -1)
-            _, px, py, side = projection._evaluate_soa(
-                np.ascontiguousarray(rays, np.float32), identity, only=i)
-            px, py = px.reshape(height, width), py.reshape(height, width)
-            side = side.reshape(height, width)
+            px = np.empty((height, width), np.float32)
+            py = np.empty_like(px)
+            side = np.empty((height, width), np.uint8)
+            xs = ((np.arange(width) - k[0, 2]) / f).astype(np.float32)
+            for r0 in range(0, height, 128):  # in bands of rows: bounded memory
+                ys = ((np.arange(r0, min(height, r0 + 128)) - k[1, 2]) / f).astype(np.float32)
+                rays = np.empty((3, len(ys), width), np.float32)
+                rays[0] = xs[None, :]
+                rays[1] = ys[:, None]
+                rays[2] = 1.0
+                _, bx, by, bs = projection._evaluate_soa(rays.reshape(3, -1), identity,
+                                                         only=i)
+                px[r0:r0 + len(ys)] = bx.reshape(len(ys), width)
+                py[r0:r0 + len(ys)] = by.reshape(len(ys), width)
+                side[r0:r0 + len(ys)] = bs.reshape(len(ys), width)
             # A plane pixel is black unless its point is farther inside the frame's
             # bilinear support than one plane pixel spans: a view pixel whose point lies
             # outside that support (black in the lookup) then reads black plane pixels
