@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
-    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import Future, ThreadPoolExecutor
 
     from accelcal_ros.camera.rig import Rig
     from accelcal_ros.panorama.projection import PanoramaGeometry
@@ -69,6 +69,10 @@ class LookupBuilder(MapBuilder):
     ``tolerance_px`` bounds the interpolation error of a pure cell (in camera pixels,
     checked at its centre).
     """
+
+    resize_in_worker = True
+    """Resize the node map in a worker thread while numpy does the other cells (a small
+    map, e.g. a view's, is resized in place: handing it over costs more than it saves)."""
 
     def __init__(self, rig: 'Rig', geometry: 'PanoramaGeometry',
                  imu_to_camera: ArrayLike = DEFAULT_IMU_TO_CAMERA, grid_step: int = 20,
@@ -383,14 +387,21 @@ class LookupBuilder(MapBuilder):
         coarse = node_map[k0:k1 + 3]
         # The resize (OpenCV, no GIL) runs while numpy computes the cells it cannot do;
         # those are written into the buffer once it is done.
-        if self._resize_pool is None:
-            from concurrent.futures import ThreadPoolExecutor
 
-            self._resize_pool = ThreadPoolExecutor(max_workers=1,
-                                                   thread_name_prefix='lookup_resize')
-        resized = self._resize_pool.submit(
-            cv2.resize, coarse, ((tw + 2) * s, (k1 - k0 + 3) * s),
-            dst=buf[k0 * s:(k1 + 3) * s], interpolation=cv2.INTER_LINEAR)
+        def resize() -> None:
+            cv2.resize(coarse, ((tw + 2) * s, (k1 - k0 + 3) * s),
+                       dst=buf[k0 * s:(k1 + 3) * s], interpolation=cv2.INTER_LINEAR)
+
+        resized: Optional['Future[None]'] = None
+        if not self.resize_in_worker:
+            resize()
+        else:
+            if self._resize_pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                self._resize_pool = ThreadPoolExecutor(max_workers=1,
+                                                       thread_name_prefix='lookup_resize')
+            resized = self._resize_pool.submit(resize)
         # cell (a, b) covers panorama pixels [a s - s/2, a s + s/2) x [b s - s/2, ...)
         blocks = self._blocks(buf[half:half + (th + 1) * s, half:half + (tw + 1) * s],
                               th + 1, s, tw + 1, s)
@@ -405,7 +416,8 @@ class LookupBuilder(MapBuilder):
                 values = self._exact_pixels(rows, cols, s, s, q)
                 count = int(values.size // 2)
         t_values = time.perf_counter()
-        resized.result()
+        if resized is not None:
+            resized.result()
         t_resize = time.perf_counter()
         if empty.any():
             blocks[empty] = OUTSIDE

@@ -171,7 +171,7 @@ class RoiViews:
                 io = self._io.get(name)
                 if view is None or io is None:
                     continue
-                image = view.render(self.views.mosaic.image)
+                image = self.views.render_view(view)
                 k = view.camera_matrix
                 frame_id = f'{self.frame_id}_roi_{name}'
                 data = image_cdr(image, self.encoding, sec, nanosec, frame_id)

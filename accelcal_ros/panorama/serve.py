@@ -10,7 +10,10 @@ encodes it as JPEG (``cv2.imencode``, libjpeg-turbo in the OpenCV wheels) and se
 one binary message, preceded by a JSON text message with the view's state (pose, horizon
 row, covered fraction, frame number). The page acknowledges each frame once drawn; the
 server sends the next one only then, so at most one frame is in flight and a drag is
-answered by the newest pose, not by a queue of old ones (why a WebSocket and not MJPEG:
+answered by the newest pose, not by a queue of old ones; a tab is drawn at most at the
+frame rate (playback, or live the frame sets' rate; at least 25 Hz, for the drag
+latency), however fast its pose changes (why
+a WebSocket and not MJPEG:
 MJPEG over HTTP has no back channel, so the pose would need a second connection, and the
 browser's MJPEG decoder gives no acknowledgement to pace frames by; see docs/roi.md
 for the measured drag-to-image latency).
@@ -44,6 +47,10 @@ DEFAULT_POSE_DEG = (0.0, 0.0, 60.0)
 """Pose of a new tab and of the reset key: azimuth, elevation, fov_h (degrees)."""
 RENDER_THREADS = 4
 """Threads that render and JPEG-encode the tabs' views (and copy in frame sets)."""
+MIN_DRAW_RATE_HZ = 25.0
+"""A dragged tab may be drawn this often even when frames come slower (drag latency)."""
+LIVE_RATE_BOUNDS = (5.0, 60.0)
+"""Live, a tab is drawn at most at the frame sets' rate, kept within these (Hz)."""
 FrameSet = Tuple[List[np.ndarray], float, float, float]
 """``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
 
@@ -91,14 +98,35 @@ class ViewServer:
         self._loop: Optional[asyncio.AbstractEventLoop] = None
         self.url = ''
         self.live = live
+        self._live_period: Optional[float] = None
+        self._last_push: Optional[float] = None
         self._have_frame = bool(self.frames)
         if self.frames:
             images, roll, pitch, stamp = self.frames[0]
             views.set_frame(images, roll, pitch, stamp)
 
+    def frame_rate(self) -> float:
+        """
+        Return the frame rate (Hz) tabs are paced by.
+
+        The playback rate, or live the rate frame sets arrive at (within
+        :data:`LIVE_RATE_BOUNDS`; the upper bound until known).
+        """
+        if not self.live:
+            return self.fps
+        low, high = LIVE_RATE_BOUNDS
+        period = self._live_period
+        return high if period is None else min(high, max(low, 1.0 / max(period, 1e-6)))
+
     def push_frame(self, images: Sequence[Any], roll: float, pitch: float,
                    stamp_s: float) -> None:
         """Show a new frame set in every tab (live mode; thread-safe, returns at once)."""
+        now = time.monotonic()
+        if self._last_push is not None:
+            step = now - self._last_push
+            self._live_period = step if self._live_period is None else \
+                0.8 * self._live_period + 0.2 * step
+        self._last_push = now
         self.views.set_frame(images, roll, pitch, stamp_s)
         loop = self._loop
         if loop is not None and self._changed is not None and not loop.is_closed():
@@ -214,7 +242,7 @@ class ViewServer:
             await ws.send_str(json.dumps({'refused': str(exc)}))
             await ws.close(code=1013, message=b'too many views')
             return ws
-        state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0}
+        state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0, 'last': 0.0}
         sender = asyncio.get_running_loop().create_task(self._send_frames(ws, name, state))
         try:
             async for msg in ws:
@@ -273,20 +301,31 @@ class ViewServer:
                         state['dirty'] or self.frame_number != seen_frame)))
             if ws.closed:
                 return
+            # a tab dragged all the time is drawn at the frame rate, not faster: the
+            # newest pose after the pause (the first move after a rest goes at once)
+            rate = max(self.frame_rate(), MIN_DRAW_RATE_HZ)
+            wait = state['last'] + 1.0 / rate - time.monotonic()
+            if wait > 0:
+                await asyncio.sleep(wait)
+                if ws.closed:
+                    return
+            state['last'] = time.monotonic()
             state['dirty'] = False
             seen_frame = self.frame_number
 
             def render() -> Tuple[bytes, Dict[str, Any]]:
                 with self.views.lock:
                     view = self.views.views[name]
-                    image = view.render(self.views.mosaic.image)
+                    image = self.views.render_view(view)
                     az, el, fov = view.pose.degrees()
                     info = {'az': az, 'el': el, 'fov': fov, 'width': view.width,
                             'height': view.height, 'horizon_row': view.horizon_row(),
                             'covered': view.covered_fraction(), 'frame': seen_frame,
                             'name': name}
-                    ok, jpeg = cv2.imencode('.jpg', image,
-                                            [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+                # the view's buffer is only rendered again by this tab, after this frame:
+                # encode outside the lock, so that other tabs render meanwhile
+                ok, jpeg = cv2.imencode('.jpg', image,
+                                        [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
                 if not ok:
                     raise InputError('JPEG encoding failed')
                 return jpeg.tobytes(), info

@@ -29,16 +29,24 @@ by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all 
 offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
 and the zoom.
 
-The lookup (view pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast
-builder (:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
+A frame is drawn one of two ways (``renderer``). ``'warp'`` (the default while the view
+or the attitude moves): up to the lens, a view pixel's ray in camera ``i`` is a
+homography, so each camera's part of the view -- a convex region bounded by eq. 6's
+great circles, straight lines in a rectilinear view -- is one ``cv2.warpPerspective`` of
+that camera's undistorted image plane, resampled from the mosaic through a fixed map
+built from the same lens code, once per frame set for all the views sharing it
+(:mod:`.view_warp`); nothing is rebuilt when the view moves. ``'map'``: the lookup (view
+pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast builder
+(:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
 interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
 error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
-map). The lookup is rebuilt only when the view's rotation in the cameras moves by more
-than ``rebuild_threshold_deg`` or the zoom changes; otherwise a frame is one
-``cv2.remap`` (16-bit fixed-point maps after two frames on one lookup, as the stitcher).
-Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` reports how many
-are seen.
+map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
+lookup). A ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
+builds its lookup and remaps from then on (a remap with a ready map is the cheapest
+frame). The view follows the attitude and its pose only when its rotation in the
+cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
+camera sees are black; :meth:`LevelledView.covered_fraction` reports how many are seen.
 """
 from dataclasses import dataclass
 import math
@@ -49,6 +57,7 @@ from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.rig_projection import RigProjection, tilt_matrix
+from accelcal_ros.panorama.view_warp import CameraPlanes, DEFAULT_PLANE_SCALE, WarpPlan
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -62,6 +71,13 @@ MIN_FOV_H_DEG = 0.5
 """Narrowest horizontal field of view accepted (an electronic zoom of ~100x)."""
 DEFAULT_VIEW_GAP_PX = 64
 """Black gap between the images of a views-only mosaic (:class:`ViewMosaic`)."""
+RENDERERS = ('warp', 'map')
+"""How :meth:`LevelledView.render` draws: a homography per camera (:mod:`.view_warp`,
+the default) or a ``cv2.remap`` of the lookup map (:meth:`LevelledView.lookup`)."""
+STILL_FRAMES_BEFORE_MAP = 3
+"""A ``'warp'`` view still for this many frames builds its lookup and remaps from then on."""
+COVERAGE_SAMPLES = 96
+"""Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`."""
 
 
 def _finite(name: str, value: Any) -> float:
@@ -149,9 +165,8 @@ def view_rotation(azimuth_rad: float, elevation_rad: float) -> np.ndarray:
     """Return ``R_PV``: view optical frame -> panorama frame ``P`` (columns x_V, y_V, z_V)."""
     ca, sa = math.cos(azimuth_rad), math.sin(azimuth_rad)
     ce, se = math.cos(elevation_rad), math.sin(elevation_rad)
-    x = np.array([ca, 0.0, -sa])
-    z = np.array([ce * sa, -se, ce * ca])
-    return np.stack([x, np.cross(z, x), z], axis=1)
+    # columns x_V = [ca, 0, -sa], y_V = z_V x x_V, z_V = [ce sa, -se, ce ca]
+    return np.array([[ca, se * sa, ce * sa], [0.0, ce, -se], [-sa, se * ca, ce * ca]])
 
 
 def horizon_row(height: int, width: int, pose: ViewPose) -> float:
@@ -201,6 +216,8 @@ class ViewLookupBuilder(LookupBuilder):
     :meth:`~.lookup.LookupBuilder.build_fast` ``(roll, pitch)`` (or ``build_exact``) gives
     the ``(H, W, 2)`` map.
     """
+
+    resize_in_worker = False
 
     def __init__(self, rig: Any, width: int, height: int, layout: MosaicLayout,
                  imu_to_camera: ArrayLike, grid_step: int = 16,
@@ -278,12 +295,15 @@ class ViewMosaic:
         self.layout = MosaicLayout.for_rig(rig, gap=gap)
         shape = (self.layout.height, self.layout.width) + ((3,) if channels == 3 else ())
         self.image = np.zeros(shape, np.uint8)
+        self.version = 0
+        """Counts :meth:`set_image` calls: views reuse per-frame-set work while it stays."""
 
     def set_image(self, index: int, image: Optional[np.ndarray]) -> None:
         """Copy camera ``index``'s image into the mosaic (None blacks it out)."""
         import cv2
 
         cam = self.rig.cameras[index]
+        self.version += 1
         x0, y0 = self.layout.offsets[index]
         view = self.image[y0:y0 + cam.height, x0:x0 + cam.width]
         if image is None:
@@ -317,36 +337,51 @@ class LevelledView:
         view.set_attitude(roll, pitch)               # radians, REP-103
         for i, image in enumerate(images):
             mosaic.set_image(i, image)
-        frame = view.render(mosaic.image)            # owned by the view: copy to keep
+        frame = view.render(mosaic.image, mosaic.version)  # owned by the view: copy to keep
 
-    Bad values raise :class:`InputError` and leave the view as it was.
+    ``renderer`` (:data:`RENDERERS`): ``'warp'`` draws each camera's part by a homography
+    from its undistorted plane (:mod:`.view_warp`; ``planes`` may be shared by the views
+    of one mosaic), ``'map'`` by one ``cv2.remap`` of the lookup. Bad values raise
+    :class:`InputError` and leave the view as it was.
     """
 
     def __init__(self, rig: Any, layout: MosaicLayout, width: int, height: int,
                  pose: Optional[ViewPose] = None, imu_to_camera: Optional[ArrayLike] = None,
                  grid_step: int = 16, tolerance_px: float = 0.1,
-                 rebuild_threshold_deg: float = 0.005) -> None:
+                 rebuild_threshold_deg: float = 0.005, renderer: str = 'warp',
+                 planes: Optional[CameraPlanes] = None,
+                 plane_scale: float = DEFAULT_PLANE_SCALE) -> None:
         import cv2
 
         if imu_to_camera is None:
             imu_to_camera = resolve_imu_to_camera(rig)[0]
         if not (math.isfinite(rebuild_threshold_deg) and rebuild_threshold_deg >= 0):
             raise InputError(f'rebuild_threshold_deg must be >= 0, got {rebuild_threshold_deg!r}')
+        if renderer not in RENDERERS:
+            raise InputError(f'renderer must be one of {", ".join(RENDERERS)}, got {renderer!r}')
         self._cv2 = cv2
         self.rig = rig
+        self.renderer = renderer
         self.width, self.height = check_view_size(width, height)
         self.builder = ViewLookupBuilder(rig, self.width, self.height, layout, imu_to_camera,
                                          grid_step, tolerance_px)
+        self.planes = planes
+        self.plane_scale = float(plane_scale)
         self.rebuild_threshold_deg = float(rebuild_threshold_deg)
         self.pose = pose if pose is not None else ViewPose()
         self.attitude: Optional[Tuple[float, float]] = None
         self._built: Optional[Tuple[np.ndarray, float]] = None  # (rotation, fov) of the map
         self._map: Optional[np.ndarray] = None
+        self._plan: Optional[WarpPlan] = None
         self._fixed: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._band = (0, 0)
         self._frames_on_map = 0
         self._covered: Optional[float] = None
         self._out: Optional[np.ndarray] = None
+        self._scratch: Optional[np.ndarray] = None
+        self._canvas: Any = None
+        self.last_frame_key: Any = None
+        """What the frame in the buffer shows (set by :class:`~.view_set.ViewSet`)."""
         self.rebuild_count = 0
 
     @property
@@ -375,53 +410,115 @@ class LevelledView:
         return t @ view_rotation(self.pose.azimuth_rad, self.pose.elevation_rad), \
             self.pose.fov_h_rad
 
-    def needs_rebuild(self) -> bool:
+    def needs_rebuild(self, target: Optional[Tuple[np.ndarray, float]] = None) -> bool:
         """Return True when the attitude or the view moved past the threshold since the map."""
         if self._built is None:
             return True
-        rotation, fov = self._target()
+        rotation, fov = self._target() if target is None else target
         old_rotation, old_fov = self._built
         cosine = (np.trace(rotation @ old_rotation.T) - 1.0) / 2.0
         moved = math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
         return moved > self.rebuild_threshold_deg or fov != old_fov
 
     def update(self) -> bool:
-        """Rebuild the lookup if the attitude or the view moved; return True if it did."""
+        """
+        Follow the attitude and the view if they moved; return True if they did.
+
+        The ``'map'`` renderer rebuilds its lookup; the ``'warp'`` one recomputes its
+        homographies and regions (the lookup is then built only when asked for).
+        """
         if self.attitude is None:
             raise InputError('no attitude yet: call set_attitude() before rendering a view')
-        if not self.needs_rebuild():
+        target = self._target()
+        if not self.needs_rebuild(target):
             return False
         self.builder.set_view(self.pose)
-        self._map = self.builder.build_fast(*self.attitude)
-        self._band = self.builder.band
-        self._built = self._target()
+        self._map = None
+        self._plan = None
+        if self.renderer == 'map':
+            self._build_map()
+        self._built = target
         self._fixed = None
         self._frames_on_map = 0
         self._covered = None
         self.rebuild_count += 1
         return True
 
+    def _build_map(self) -> np.ndarray:
+        assert self.attitude is not None
+        self._map = self.builder.build_fast(*self.attitude)
+        self._band = self.builder.band
+        return self._map
+
+    def shared_planes(self) -> CameraPlanes:
+        """Return the undistorted camera planes this view draws from (made on first use)."""
+        if self.planes is None:
+            self.planes = CameraPlanes(self.builder, self.plane_scale)
+        return self.planes
+
+    def plan(self) -> WarpPlan:
+        """Return the current :class:`~.view_warp.WarpPlan` (regions and homographies)."""
+        self.update()
+        if self._plan is None:
+            assert self.attitude is not None
+            self._plan = WarpPlan(self.builder.camera_rotations(*self.attitude),
+                                  self.shared_planes(), self.width, self.height,
+                                  self.builder._grid.cx, self.builder._grid.cy)
+        return self._plan
+
     def lookup(self) -> np.ndarray:
         """Return the current map ``(H, W, 2)`` (rows outside the band hold no camera)."""
         self.update()
+        if self._map is None:
+            self._build_map()
         assert self._map is not None
         full = np.full((self.height, self.width, 2), OUTSIDE, np.float32)
         r0, r1 = self._band
         full[r0:r1] = self._map[r0:r1]
         return full
 
-    def render(self, mosaic: np.ndarray) -> np.ndarray:
+    def render(self, mosaic: np.ndarray, version: Any = None) -> np.ndarray:
         """
         Return the view of ``mosaic`` (an internal buffer, overwritten next frame: copy it).
 
-        Rebuilds the lookup first when needed (:meth:`update`); pixels no camera sees are 0.
+        ``version`` (e.g. :attr:`ViewMosaic.version`) lets views sharing ``planes`` resample
+        each camera's plane once per frame set; None: resampled on every call. Pixels no
+        camera sees are 0.
         """
-        cv2 = self._cv2
         self.update()
+        self.last_frame_key = None
         shape = (self.height, self.width) + mosaic.shape[2:]
         if self._out is None or self._out.shape != shape:
             self._out = np.zeros(shape, np.uint8)
+        self._frames_on_map += 1
+        if self.renderer == 'warp' and self._frames_on_map <= STILL_FRAMES_BEFORE_MAP:
+            plan = self.plan()
+            planes = self.shared_planes()
+            planes.prepare(mosaic, plan.needs, version)
+            work = (self.height, self.width, 4) if len(shape) == 3 else shape
+            if self._scratch is None or self._scratch.shape != work:
+                self._scratch = np.zeros(work, np.uint8)
+                self._canvas = np.zeros(work, np.uint8) if len(shape) == 3 else self._out
+            plan.render(planes, self._out, self._canvas, self._scratch)
+            return self._out
+        if self._map is None:
+            self._build_map()
+        return self._render_map(mosaic)
+
+    def copy_frame(self, other: 'LevelledView', key: Any = None) -> np.ndarray:
+        """Take ``other``'s last frame (same pose, attitude and size) as this view's."""
+        self.update()
+        assert other._out is not None
+        if self._out is None or self._out.shape != other._out.shape:
+            self._out = np.empty_like(other._out)
+        np.copyto(self._out, other._out)
+        self.last_frame_key = key
+        return self._out
+
+    def _render_map(self, mosaic: np.ndarray) -> np.ndarray:
+        cv2 = self._cv2
         out = self._out
+        assert out is not None
         r0, r1 = self._band
         out[:r0] = 0
         out[r1:] = 0
@@ -429,30 +526,33 @@ class LevelledView:
             return out
         fine = self._map
         assert fine is not None
-        self._frames_on_map += 1
-        if self._fixed is None and self._frames_on_map >= 3:
+        if self._fixed is None:  # converting costs less than a remap from floats saves
             self._fixed = cv2.convertMaps(fine[r0:r1], None, cv2.CV_16SC2)
-        if self._fixed is not None:
-            cv2.remap(mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
-                      dst=out[r0:r1], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        else:
-            cv2.remap(mosaic, fine[r0:r1], None, cv2.INTER_LINEAR, dst=out[r0:r1],
-                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        cv2.remap(mosaic, self._fixed[0], self._fixed[1], cv2.INTER_LINEAR,
+                  dst=out[r0:r1], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return out
 
     def covered_fraction(self) -> float:
         """
-        Fraction of the view's pixels some camera sees (computed once per lookup).
+        Fraction of the view's pixels some camera sees (computed once per pose).
 
-        A pixel counts when its mosaic point lies within a camera's frame, to half a pixel
-        beyond its outermost pixel centres (at least half its bilinear weight on pixels).
+        A pixel counts when its point lies within the chosen camera's frame, to half a
+        pixel beyond its outermost pixel centres (at least half its bilinear weight on
+        pixels); evaluated exactly at :data:`COVERAGE_SAMPLES` pixels along the longer
+        side (and as many rows or columns at that spacing on the other).
         """
         self.update()
         if self._covered is None:
-            m = self.lookup()[::2, ::2]
-            seen = np.zeros(m.shape[:2], bool)
-            for (x0, y0), cam in zip(self.builder.layout.offsets, self.rig.cameras):
-                seen |= (m[..., 0] >= x0 - 0.5) & (m[..., 0] <= x0 + cam.width - 0.5) & \
-                    (m[..., 1] >= y0 - 0.5) & (m[..., 1] <= y0 + cam.height - 0.5)
+            assert self.attitude is not None
+            step = max(1.0, max(self.width, self.height) / COVERAGE_SAMPLES)
+            u = np.arange(step / 2 - 0.5, self.width - 0.5, step)
+            v = np.arange(step / 2 - 0.5, self.height - 0.5, step)
+            g = self.builder.geometry
+            rays = g.rays(u[None, :], v[:, None]).reshape(-1, 3)
+            label, x, y, side = self.builder.evaluate(
+                rays, self.builder.camera_rotations(*self.attitude))
+            size = self.builder._sizes[label]
+            seen = ((side & 16) == 0) & (x >= -0.5) & (x <= size[:, 0] - 0.5) & \
+                (y >= -0.5) & (y <= size[:, 1] - 0.5)
             self._covered = float(seen.mean())
         return self._covered

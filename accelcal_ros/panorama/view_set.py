@@ -19,6 +19,7 @@ from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.view import (check_view_size, LevelledView, ViewMosaic,
                                         ViewPose)
+from accelcal_ros.panorama.view_warp import CameraPlanes
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -82,6 +83,10 @@ class ViewSet:
         self.grid_step = grid_step
         self.rebuild_threshold_deg = rebuild_threshold_deg
         self.views: Dict[str, LevelledView] = {}
+        self.planes: Optional[CameraPlanes] = None  # shared by the views (view_warp)
+        self._drawn: Dict[Any, LevelledView] = {}  # frames drawn from this frame set
+        self._drawn_version: Any = None
+        self.shared_frames = 0
         self.attitude: Optional[Tuple[float, float]] = None
         self.stamp_s: Optional[float] = None
         self.lock = threading.RLock()
@@ -104,7 +109,9 @@ class ViewSet:
                                  f'({", ".join(self.views)}); remove one first')
             view = LevelledView(self.rig, self.mosaic.layout, size[0], size[1], pose,
                                 self.imu_to_camera, self.grid_step,
-                                rebuild_threshold_deg=self.rebuild_threshold_deg)
+                                rebuild_threshold_deg=self.rebuild_threshold_deg,
+                                planes=self.planes)
+            self.planes = view.shared_planes()
             if self.attitude is not None:
                 view.set_attitude(*self.attitude)
             self.views[name] = view
@@ -169,10 +176,32 @@ class ViewSet:
             view = self.views.get(name)
             if view is None:
                 raise InputError(f'no view named {name!r}')
-            return view.render(self.mosaic.image).copy()
+            return self.render_view(view).copy()
 
     def render_all(self) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
         """Return ``{name: (image copy, K)}`` of every view for the current frame set."""
         with self.lock:
-            return {name: (view.render(self.mosaic.image).copy(), view.camera_matrix)
+            return {name: (self.render_view(view).copy(), view.camera_matrix)
                     for name, view in self.views.items()}
+
+    def render_view(self, view: LevelledView) -> np.ndarray:
+        """
+        Return ``view`` of the current frame set (its own buffer; hold :attr:`lock`).
+
+        The views share each camera's undistorted plane, resampled once per frame set,
+        and a view posed exactly as another one already drawn from this frame set
+        copies that frame instead of drawing it again (:attr:`shared_frames` counts).
+        """
+        key = (self.mosaic.version, view.pose, view.attitude, view.width, view.height)
+        if self._drawn_version != key[0]:
+            self._drawn.clear()
+            self._drawn_version = key[0]
+        twin = self._drawn.get(key)
+        if twin is not None and twin is not view and twin.last_frame_key == key and \
+                any(v is twin for v in self.views.values()):
+            self.shared_frames += 1
+            return view.copy_frame(twin, key)
+        image = view.render(self.mosaic.image, self.mosaic.version)
+        view.last_frame_key = key
+        self._drawn[key] = view
+        return image

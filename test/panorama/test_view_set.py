@@ -100,3 +100,30 @@ def test_render_all_from_one_frame_and_concurrent_steering():
         views.set_frame(frames, math.nan, 0.0)
     assert views.attitude == (0.05, 0.1)
     assert np.array_equal(views.render('b'), views.render('b'))
+
+
+def test_views_posed_alike_share_a_frame_and_planes_serve_every_view():
+    """Two views posed alike draw one frame; each frame matches its view drawn alone."""
+    from accelcal_ros.panorama.view import LevelledView, ViewPose
+
+    rig = _rig()
+    scene = render.make_scene(900, 450, seed=1)
+    views = ViewSet(rig, width=160, height=120)
+    views.apply_entries(['a:10,0,40', 'b:10,0,40', 'c:-20,2,50'])
+    assert views.views['a'].planes is views.views['c'].planes  # one set of planes
+    for k, (roll, pitch) in enumerate([(0.05, 0.1), (-0.02, 0.12)]):
+        frames = render.render_camera_views(scene, rig, roll, pitch)
+        views.set_frame(frames, roll, pitch)
+        shared = views.shared_frames
+        out = views.render_all()
+        assert views.shared_frames == shared + 1  # b copied a's frame of this frame set
+        assert np.array_equal(out['a'][0], out['b'][0])
+        for name, pose in (('a', ViewPose.from_degrees(10, 0, 40)),
+                           ('c', ViewPose.from_degrees(-20, 2, 50))):
+            alone = LevelledView(rig, views.mosaic.layout, 160, 120, pose)
+            alone.set_attitude(roll, pitch)
+            assert np.array_equal(out[name][0], alone.render(views.mosaic.image))
+    views.set_pose('b', ViewPose.from_degrees(11, 0, 40))  # moved: drawn on its own
+    shared = views.shared_frames
+    out = views.render_all()
+    assert views.shared_frames == shared and not np.array_equal(out['a'][0], out['b'][0])
