@@ -29,7 +29,11 @@ def read_imu_csv(path: str) -> 'ImuLog':
     t = cols['t']
     accel = np.stack([cols['ax'], cols['ay'], cols['az']], axis=1)
     gyro = None
-    if all(k in cols for k in ('gx', 'gy', 'gz')):
+    present = [k for k in ('gx', 'gy', 'gz') if k in cols]
+    if present and len(present) != 3:
+        raise FileFormatError(path, f'gyro columns {present}: give all of gx,gy,gz (rad/s) '
+                              'or none', 1)
+    if present:
         gyro = np.stack([cols['gx'], cols['gy'], cols['gz']], axis=1)
     if t.size == 0:
         raise FileFormatError(path, 'no samples after the header')
