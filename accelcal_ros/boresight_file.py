@@ -37,7 +37,6 @@ SCHEMA = {
     'floor_inliers': Key('a list of integers', list_of(is_integer)),
     'dropped': Key('a mapping position -> reason', text_mapping),
     'warnings': Key('a list of text', _TEXTS),
-    'uncertainty_floor': Key('a mapping (why an uncertainty was raised)', text_mapping),
     'prior_rpy_deg': Key('3 numbers (deg) or null', or_none(numbers(3))),
 }
 """Every key of a boresight file (``R`` and ``rpy_deg`` are checked by :func:`load_boresight`

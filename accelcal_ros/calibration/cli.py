@@ -283,6 +283,8 @@ def _attitude(args):
         raise InputError('--every must be at least 1')
     if args.calibration:
         record = load_calibration(args.calibration)
+        for note in record.notes:
+            print(f'note: {args.calibration}: {note}', file=sys.stderr)
         model = record.sensor_model
         tilt_std = np.radians(record.predicted_tilt_error_deg / 1.96) \
             if np.isfinite(record.predicted_tilt_error_deg) else 0.0
