@@ -114,8 +114,9 @@ def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence
     ``required`` columns must all be present; ``optional`` ones are returned if present;
     any other column, or a column named twice, is refused (the formats are
     :data:`accelcal_ros.schema.CSV_FORMATS`, listed in docs/formats.md). Every row must
-    have as many fields as the header and only numbers; a short last row (truncated file) is reported with its line number. With ``finite=True`` a NaN or
-    infinity is an error; ``increasing='t'`` requires column ``t`` to increase strictly.
+    have as many fields as the header and only numbers; a short last row (truncated file)
+    is reported with its line number. With ``finite=True`` a NaN or infinity is an error;
+    ``increasing='t'`` requires column ``t`` to increase strictly.
     """
     import numpy as np
 

@@ -12,6 +12,7 @@ import math
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ def floor_at_known_error(reported: float, known: Sequence[Optional[KnownError]],
                          f'{worst.why}')
 
 
-def floor_each_at_known_error(reported: Sequence[float],
+def floor_each_at_known_error(reported: ArrayLike,
                               known: Sequence[Optional[KnownError]], unit: str = '',
                               name: str = 'uncertainty'
                               ) -> Tuple[np.ndarray, Optional[str]]:

@@ -1,4 +1,4 @@
-"""Every file format states its keys/columns: unknown, missing, wrong type refused; own output reads."""
+"""Every file format states its keys and columns: others refused; own output reads back."""
 import argparse
 import os
 
@@ -56,7 +56,7 @@ YAML_READERS = [('boresight', load_boresight, BORESIGHT, 'R'),
 @pytest.mark.parametrize('name,reader,good,required', YAML_READERS,
                          ids=[r[0] for r in YAML_READERS])
 def test_yaml_formats_refuse_unknown_missing_and_wrong_types(tmp_path, name, reader, good,
-                                                              required):
+                                                             required):
     """Each YAML format: the good file reads; an unknown key, a missing one, a bool refused."""
     reader(_yaml(tmp_path, good))
     _refused(reader, _yaml(tmp_path, dict(good, misspelt_key=1)), 'unknown key', 'misspelt_key')
@@ -72,7 +72,8 @@ def test_yaml_formats_refuse_unknown_missing_and_wrong_types(tmp_path, name, rea
 
 def test_camera_info_nested_keys_and_types(tmp_path):
     """camera_matrix.rows missing, a text width, an unknown nested key: each named."""
-    bad = dict(CAMERA_INFO, camera_matrix={'cols': 3, 'data': CAMERA_INFO['camera_matrix']['data']})
+    bad = dict(CAMERA_INFO,
+               camera_matrix={'cols': 3, 'data': CAMERA_INFO['camera_matrix']['data']})
     _refused(load_camera_info, _yaml(tmp_path, bad), 'camera_matrix.rows')
     bad = dict(CAMERA_INFO, image_width='640')
     _refused(load_camera_info, _yaml(tmp_path, bad), 'image_width', 'integer')
@@ -117,7 +118,7 @@ CSV_READERS = [
 
 @pytest.mark.parametrize('name,reader,header,rows', CSV_READERS, ids=[r[0] for r in CSV_READERS])
 def test_csv_formats_refuse_unknown_missing_and_wrong_types(tmp_path, name, reader, header,
-                                                             rows):
+                                                            rows):
     """Each CSV: reads; an extra column, a missing one, a doubled one, text: one line each."""
     path = tmp_path / 'f.csv'
     path.write_text(f'{header}\n{rows}')
@@ -180,3 +181,21 @@ def test_own_writers_and_sample_data_read_back(tmp_path, capsys):
     assert load_recording(str(tmp_path / 'drive.csv'))[0].size > 0
     assert read_odometry_csv(str(tmp_path / 'odo.csv'))[0].size >= 2
     capsys.readouterr()
+
+
+def test_docs_list_every_key_and_column():
+    """docs/formats.md names every key of every schema and every CSV format's columns."""
+    from accelcal_ros import boresight_file
+    from accelcal_ros.camera import camera_info
+    from accelcal_ros.camera.rig import CAMERA_ENTRY_KEYS
+    from accelcal_ros.schema import schema_table
+    from accelcal_ros.sensor import calibration_file
+
+    text = open(os.path.join(os.path.dirname(__file__), '..', 'docs', 'formats.md')).read()
+    keys = [row[0] for row in schema_table(boresight_file.SCHEMA)]
+    keys += [row[0] for row in schema_table(camera_info.SCHEMA)]
+    keys += list(calibration_file.SCHEMA) + list(CAMERA_ENTRY_KEYS)
+    for key in keys:
+        assert f'`{key}`' in text, key
+    for fmt in CSV_FORMATS.values():
+        assert f'`{",".join(fmt.required)}`' in text, fmt.name

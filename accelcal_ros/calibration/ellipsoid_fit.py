@@ -28,8 +28,8 @@ from typing import List, Optional, Tuple
 from accelcal_ros.calibration.coverage import (describe_direction, direction_spread_deg,
                                                predicted_tilt_error_deg, suggest_directions)
 from accelcal_ros.errors import CalibrationError, InputError
-from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.calibration_file import tilt_error_known_deg
+from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.model import MODELS, SensorModel
 from accelcal_ros.uncertainty import floor_at_known_error
 import numpy as np

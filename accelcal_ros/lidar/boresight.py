@@ -240,9 +240,10 @@ def _honest_std(rotation: np.ndarray, cov: np.ndarray, checks: Dict[str, Any],
     variance, their difference four times: over two constrained axes a difference of ``d``
     deg is beyond the 95 % level (``2.45`` standard deviations, chi-square with 2 degrees
     of freedom) unless the per-angle standard deviation is at least ``d / (2 x 2.45)``;
-    a smaller one is refuted by the check. A result at the floor search's limit (``off_limit_deg`` from the
-    prior) may have its floors on other planes: its error is not below that distance.
-    The covariance is scaled with the largest raise; the reason goes into ``warn``.
+    a smaller one is refuted by the check. A result at the floor search's limit
+    (``off_limit_deg`` from the prior) may have its floors on other planes: its error is not
+    below that distance. The covariance is scaled with the largest raise; the reason goes
+    into ``warn``.
     """
     std = rpy_std_deg(rotation, cov)
     known = []
