@@ -32,6 +32,7 @@ from typing import Any, List, Optional
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import check_mapping, Key
 from accelcal_ros.sensor.model import MODELS, SensorModel
 from accelcal_ros.textformats import dump_yaml, load_yaml_mapping, yaml_number
 from accelcal_ros.uncertainty import floor_at_known_error, KnownError
@@ -192,7 +193,7 @@ def _count(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
-SCHEMA = {
+SCHEMA = {key: Key(what, check) for key, (what, check) in {
     'format': ('the string "' + FORMAT + '"', _text),
     'model': (f'one of {", ".join(MODELS)}', _text),
     'scale': ('3 numbers', None),
@@ -212,7 +213,7 @@ SCHEMA = {
     'created': ('a UTC time', _created),
     'captures_g': ('a list of [x, y, z] (g)', _captures),
     'residuals_g': ('a list of numbers (g)', _number_list),
-}
+}.items()}
 """Every key a calibration file may hold: ``(what it must be, check)`` (the vectors are
 checked by ``_vector``). Required: ``model``, ``scale``, ``bias``, and ``misalignment`` for
 ``model: full``; ``format`` when present must be :data:`FORMAT`. Any other key is refused
@@ -220,13 +221,10 @@ checked by ``_vector``). Required: ``model``, ``scale``, ``bias``, and ``misalig
 
 
 def _check_schema(path: str, data: dict) -> None:
-    unknown = sorted(str(k) for k in data if k not in SCHEMA)
-    if unknown:
-        raise FileFormatError(path, f'unknown key(s) {", ".join(unknown)}; a calibration file '
-                              f'holds only {", ".join(SCHEMA)} (misspelt?)')
-    for key, (what, check) in SCHEMA.items():
-        if check is not None and key in data and not check(data[key]):
-            raise FileFormatError(path, f'"{key}" must be {what}, got {data[key]!r}')
+    try:  # required keys: _vector, with the calibration's own message
+        check_mapping(data, SCHEMA, 'a calibration file')
+    except InputError as exc:
+        raise FileFormatError(path, str(exc)) from None
     if 'format' in data and data['format'] != FORMAT:
         raise FileFormatError(path, f'unknown format {data["format"]!r}: this version reads '
                               f'"{FORMAT}" (written by a newer accelcal_ros? update it)')
