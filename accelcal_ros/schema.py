@@ -117,11 +117,14 @@ def check_mapping(data: Any, schema: Schema, what: str, where: str = '') -> None
         name = where.rstrip('.') or what
         raise InputError(f'{name} must be a mapping, got {type(data).__name__}')
     unknown = sorted(str(k) for k in data if k not in schema)
+    missing = [where + k for k, key in schema.items()
+               if key.required and data.get(k) is None]
+    if missing and unknown:
+        raise InputError(f'missing key(s) {", ".join(missing)} and unknown key(s) '
+                         f'{", ".join(where + k for k in unknown)} in {what} (misspelt?)')
     if unknown:
         raise InputError(f'unknown key(s) {", ".join(where + k for k in unknown)}; {what} '
                          f'holds only {", ".join(where + k for k in schema)} (misspelt?)')
-    missing = [where + k for k, key in schema.items()
-               if key.required and data.get(k) is None]
     if missing:
         raise InputError(f'missing key(s) {", ".join(missing)} ({what}; truncated file?)')
     for name, key in schema.items():
