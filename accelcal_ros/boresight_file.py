@@ -5,16 +5,42 @@ The LiDAR-IMU boresight file (shared floor): read by the LiDAR feature and the f
 ``rpy_deg`` is the same rotation as REP-103 fixed-axis ``Rz(yaw) Ry(pitch) Rx(roll)``.
 ``accelcal boresight`` and the ``lidar_calibration`` node write both
 (:mod:`accelcal_ros.lidar.boresight`); a hand-written file may hold either.
+:data:`SCHEMA` lists every key a boresight file may hold; any other key is refused.
 """
 import os
 from typing import Any, Union
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.frames import rotation_from_rpy_radians, rotation_matrix_from_list
+from accelcal_ros.schema import (check_mapping, is_integer, is_real, is_text, Key, list_of,
+                                 number_rows, numbers, or_none, text_mapping)
 from accelcal_ros.textformats import load_yaml_mapping
 import numpy as np
 
 PathLike = Union[str, 'os.PathLike[str]']
+
+
+_TEXTS = list_of(is_text)
+SCHEMA = {
+    'R': Key('9 numbers (row-major rotation, LiDAR -> IMU)'),
+    'rpy_deg': Key('3 numbers (roll, pitch, yaw, deg)'),
+    'rpy_std_deg': Key('3 numbers (deg)', numbers(3, finite=False)),
+    'convention': Key('text', is_text),
+    'positions': Key('a list of position names', _TEXTS),
+    'per_position_error_deg': Key('a list of numbers (deg)', numbers(finite=False)),
+    'mean_error_deg': Key('a number (deg)', is_real),
+    'max_error_deg': Key('a number (deg)', is_real),
+    'holdout_error_deg': Key('a mapping', text_mapping),
+    'rotation_covariance_rad2': Key('9 numbers (rad^2)', numbers(9, finite=False)),
+    'floor_normals_lidar': Key('a list of [x, y, z]', number_rows(3, finite=False)),
+    'gravity_imu_m_s2': Key('a list of [x, y, z] (m/s^2)', number_rows(3, finite=False)),
+    'floor_inliers': Key('a list of integers', list_of(is_integer)),
+    'dropped': Key('a mapping position -> reason', text_mapping),
+    'warnings': Key('a list of text', _TEXTS),
+    'prior_rpy_deg': Key('3 numbers (deg) or null', or_none(numbers(3))),
+}
+"""Every key of a boresight file (``R`` and ``rpy_deg`` are checked by :func:`load_boresight`
+itself: one of them is required); the others are what ``accelcal boresight`` reports."""
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -32,6 +58,10 @@ def load_boresight(path: PathLike) -> np.ndarray:
     0.01 deg (an edited ``rpy_deg`` beside a stale ``R`` is refused, not silently ignored).
     """
     data = load_yaml_mapping(path, 'boresight file')
+    try:
+        check_mapping(data, SCHEMA, 'a boresight file')
+    except InputError as exc:
+        raise FileFormatError(path, str(exc)) from None
     if 'R' not in data and 'rpy_deg' not in data:
         raise FileFormatError(path, 'boresight file has neither R (9 values) nor rpy_deg (3)')
     from_r = from_rpy = None

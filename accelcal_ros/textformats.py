@@ -111,10 +111,12 @@ def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence
     """
     Read a CSV with a header into a dict of float arrays; errors name file and line.
 
-    ``required`` columns must all be present; ``optional`` ones are returned if present.
-    Every row must have as many fields as the header and only numbers; a short last row
-    (truncated file) is reported with its line number. With ``finite=True`` a NaN or
-    infinity is an error; ``increasing='t'`` requires column ``t`` to increase strictly.
+    ``required`` columns must all be present; ``optional`` ones are returned if present;
+    any other column, or a column named twice, is refused (the formats are
+    :data:`accelcal_ros.schema.CSV_FORMATS`, listed in docs/formats.md). Every row must
+    have as many fields as the header and only numbers; a short last row (truncated file)
+    is reported with its line number. With ``finite=True`` a NaN or infinity is an error;
+    ``increasing='t'`` requires column ``t`` to increase strictly.
     """
     import numpy as np
 
@@ -136,10 +138,18 @@ def _numeric_rows(path, reader, required, optional, finite, increasing):
     except StopIteration:
         raise FileFormatError(path, 'empty file (expected a header line)', 1) from None
     header = [h.strip() for h in header]
+    expected = ','.join(list(required) + [f'[{c}]' for c in optional])
     missing = [c for c in required if c not in header]
     if missing:
         raise FileFormatError(path, f'header lacks column(s) {missing}; '
-                              f'expected {",".join(list(required) + list(optional))}', 1)
+                              f'expected {expected}', 1)
+    unknown = [c for c in header if c not in required and c not in optional]
+    if unknown:
+        raise FileFormatError(path, f'unknown column(s) {unknown}; this file holds only '
+                              f'{expected} (misspelt, or another kind of file?)', 1)
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise FileFormatError(path, f'column(s) {twice} named more than once', 1)
     wanted = [c for c in list(required) + list(optional) if c in header]
     index = [header.index(c) for c in wanted]
     k_increasing = wanted.index(increasing) if increasing is not None else None

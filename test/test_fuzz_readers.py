@@ -132,6 +132,13 @@ def _write_imu(path):
                                np.tile([0.001, 0.0, -0.001], (10, 1))))
 
 
+def _write_view_path(path):
+    rows = ['t,azimuth,elevation,fov_h'] + [f'{0.5 * k:.1f},{10.0 * k - 20:.1f},{k - 3:.1f},60'
+                                            for k in range(8)]
+    with open(path, 'w') as handle:
+        handle.write('\n'.join(rows) + '\n')
+
+
 def _cloud():
     from accelcal_ros.lidar.cloud import make_cloud
 
@@ -226,6 +233,10 @@ READERS = {
     'rig_yaml': ('rig.yaml', _write_rig,
                  lambda p: _function('accelcal_ros.camera.rig:load_rig')(p)),
     'camera_info_yaml': ('cam.yaml', _write_camera_info, _read_camera_info),
+    'rig_intrinsics_yaml': ('cam.yaml', _write_camera_info, lambda p: _function(
+        'accelcal_ros.rig.intrinsics:load_camera_info')(p)),
+    'view_path_csv': ('path.csv', _write_view_path, lambda p: _function(
+        'accelcal_ros.panorama.view_cli:ViewPath').load(p)),
     'boresight_yaml': ('bs.yaml', _write_boresight,
                        lambda p: _function('accelcal_ros.lidar.boresight:load_boresight')(p)),
     'poses_csv': ('poses.csv', _write_poses,

@@ -160,6 +160,8 @@ class AttitudeNode(Node):
             f'loaded {record.model} calibration from {path}: scale '
             f'{record.sensor_model.scale.round(5).tolist()}, bias '
             f'{record.sensor_model.bias.round(5).tolist()} g')
+        for note in record.notes:  # an uncertainty raised to the file's own known error
+            self.get_logger().warning(f'{path}: {note}')
 
     def _on_change(self, name, value):
         """Apply accepted run-time changes; raise InputError to reject one."""

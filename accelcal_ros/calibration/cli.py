@@ -96,10 +96,11 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
 def _read_recording(path):
     """Return (t, accel in g); NaN samples are kept (the calibration skips them)."""
     from accelcal_ros.errors import FileFormatError
+    from accelcal_ros.schema import RECORDING_CSV
     from accelcal_ros.textformats import read_numeric_csv
     import numpy as np
 
-    columns = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'))
+    columns = read_numeric_csv(path, RECORDING_CSV.required, RECORDING_CSV.optional)
     t = columns['t']
     if t.size == 0:
         raise FileFormatError(path, 'recording has a header but no samples', 2)
@@ -282,6 +283,8 @@ def _attitude(args):
         raise InputError('--every must be at least 1')
     if args.calibration:
         record = load_calibration(args.calibration)
+        for note in record.notes:
+            print(f'note: {args.calibration}: {note}', file=sys.stderr)
         model = record.sensor_model
         tilt_std = np.radians(record.predicted_tilt_error_deg / 1.96) \
             if np.isfinite(record.predicted_tilt_error_deg) else 0.0
@@ -335,9 +338,10 @@ def _read_attitude_input(args):
         warn(imu.warnings)
         return imu.t, imu.accel / STANDARD_GRAVITY, imu.gyro
     t, accel = _read_recording_of(args)
+    from accelcal_ros.schema import RECORDING_CSV
     from accelcal_ros.textformats import read_numeric_csv
 
-    columns = read_numeric_csv(args.recording, ('t',), ('gx', 'gy', 'gz'))
+    columns = read_numeric_csv(args.recording, RECORDING_CSV.required, RECORDING_CSV.optional)
     present = [c for c in ('gx', 'gy', 'gz') if c in columns]
     if not present:
         return t, accel, None

@@ -28,8 +28,10 @@ from typing import List, Optional, Tuple
 from accelcal_ros.calibration.coverage import (describe_direction, direction_spread_deg,
                                                predicted_tilt_error_deg, suggest_directions)
 from accelcal_ros.errors import CalibrationError, InputError
+from accelcal_ros.sensor.calibration_file import tilt_error_known_deg
 from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.model import MODELS, SensorModel
+from accelcal_ros.uncertainty import floor_at_known_error
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
@@ -306,6 +308,11 @@ def fit_ellipsoid(raw_g: ArrayLike, std_of_mean_g: Optional[ArrayLike] = None,
         raise CalibrationError(
             f'the positions constrain the {model} model too weakly (predicted roll/pitch '
             f'error {predicted:.1f} deg): {where}. Add positions, e.g. {hints}')
+    predicted, note = floor_at_known_error(
+        predicted, tilt_error_known_deg(holdout_rms, float(np.sqrt(np.mean(
+            residuals_all[used] ** 2)))), ' deg', 'predicted roll/pitch error')
+    if note:
+        warnings.append(note)
     if predicted > 0.5:
         warnings.append(f'predicted roll/pitch error {predicted:.2f} deg is large: add '
                         'positions, e.g. ' + '; '.join(suggest_directions(raw_g[used], 3)))

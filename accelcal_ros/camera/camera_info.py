@@ -14,16 +14,20 @@ What a camera driver loads as its ``camera_info_url`` and ``camera_calibration``
 
 For a single (not stereo) camera the rectification is the identity and the projection
 matrix is ``[K | 0]``. Pixel coordinates follow OpenCV in both (as the package's camera
-model does). The reader checks each matrix's ``rows`` x ``cols`` against its data and
+model does). The reader checks the file against :data:`SCHEMA` (the keys
+camera_calibration_parsers reads; ``image_width``, ``image_height`` and ``camera_matrix``
+required, any other key refused), each matrix's ``rows`` x ``cols`` against its data, and
 names the file and key of whatever is wrong.
 """
 import os
 from typing import Any, Dict, Mapping, Sequence, Tuple, Union
 
+from accelcal_ros.camera.distortion import DISTORTION_MODELS
 from accelcal_ros.camera.model import camera_model_from_mapping, CameraModel
 from accelcal_ros.camera.rig import Rig, RigCamera
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import check_mapping, is_integer, is_text, Key, numbers, one_of
 from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
 import numpy as np
 
@@ -31,6 +35,24 @@ PathLike = Union[str, 'os.PathLike[str]']
 
 _SHAPES = {'camera_matrix': (3, 3), 'rectification_matrix': (3, 3),
            'projection_matrix': (3, 4)}
+
+
+_MATRIX = {'rows': Key('an integer', is_integer, required=True),
+           'cols': Key('an integer', is_integer, required=True),
+           'data': Key('a list of numbers', numbers(), required=True)}
+SCHEMA = {
+    'image_width': Key('an integer (px)', is_integer, required=True),
+    'image_height': Key('an integer (px)', is_integer, required=True),
+    'camera_name': Key('text', is_text),
+    'camera_matrix': Key('{rows: 3, cols: 3, data: [9 numbers]}', required=True,
+                         schema=_MATRIX),
+    'distortion_model': Key(f'one of {", ".join(DISTORTION_MODELS)}',
+                            one_of(*DISTORTION_MODELS)),
+    'distortion_coefficients': Key('{rows: 1, cols: N, data: [N numbers]}', schema=_MATRIX),
+    'rectification_matrix': Key('{rows: 3, cols: 3, data: [9 numbers]}', schema=_MATRIX),
+    'projection_matrix': Key('{rows: 3, cols: 4, data: [12 numbers]}', schema=_MATRIX),
+}
+"""Every key of a camera_info file (camera_calibration_parsers' YAML) and its type."""
 
 
 def _matrix(rows: int, cols: int, values: np.ndarray) -> Dict[str, Any]:
@@ -76,6 +98,7 @@ def _check_shape(data: Mapping, key: str, shape: Tuple[int, int]) -> None:
 
 def camera_info_from_mapping(data: Mapping) -> Tuple[str, CameraModel]:
     """Return ``(camera_name, CameraModel)`` of a parsed camera_info mapping (InputError)."""
+    check_mapping(data, SCHEMA, 'a camera_info file')
     for key, shape in _SHAPES.items():
         _check_shape(data, key, shape)
     d = data.get('distortion_coefficients')

@@ -41,6 +41,7 @@ from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, rot_x, rot_y, rot_z,
                                  rotation_matrix_from_list)
+from accelcal_ros.schema import check_mapping, Key
 from accelcal_ros.textformats import dump_yaml, load_yaml_mapping, yaml_number
 import numpy as np
 
@@ -185,6 +186,14 @@ class Rig:
 
 CAMERA_ENTRY_KEYS = ('name', 'width', 'height', 'K', 'D', 'distortion_model', 'R', 't_m')
 """Keys of one ``cameras:`` entry (``D``, ``distortion_model`` and ``t_m`` optional)."""
+CAMERA_SCHEMA = {key: Key('see the module text (checked by the camera model)',
+                          required=key in ('name', 'width', 'height', 'K', 'R'))
+                 for key in CAMERA_ENTRY_KEYS}
+"""The keys of a camera entry for :func:`~accelcal_ros.schema.check_mapping` (the values
+are checked, naming the camera, by :func:`camera_from_mapping`)."""
+RIG_SCHEMA = {'cameras': Key('a non-empty list of cameras', required=True),
+              'imu_to_camera': Key('9 numbers (a rotation, row-major)')}
+"""The top-level keys of a rig file."""
 
 
 def _number_list(value: Any, count_choices: Sequence[int], where: str,
@@ -215,13 +224,10 @@ def camera_from_mapping(entry: Any, index: int) -> RigCamera:
                          f'R (and optional D), got {type(entry).__name__}')
     name = entry.get('name')
     where = f'camera {index}' + (f' ({name!r})' if name is not None else '')
-    missing = [k for k in ('name', 'width', 'height', 'K', 'R') if k not in entry]
-    if missing:
-        raise InputError(f'{where}: missing key(s) {", ".join(missing)}')
-    unknown = sorted(set(entry) - set(CAMERA_ENTRY_KEYS))
-    if unknown:
-        raise InputError(f'{where}: unknown key(s) {", ".join(unknown)}; expected '
-                         f'{", ".join(CAMERA_ENTRY_KEYS)}')
+    try:
+        check_mapping(entry, CAMERA_SCHEMA, 'a camera entry')
+    except InputError as exc:
+        raise InputError(f'{where}: {exc}') from None
     if not isinstance(name, str) or not name:
         raise InputError(f'{where}: name must be a non-empty string')
     model = camera_model_from_mapping(entry, where)
@@ -233,12 +239,10 @@ def camera_from_mapping(entry: Any, index: int) -> RigCamera:
 
 def rig_from_mapping(data: Mapping, source: str = 'rig') -> Rig:
     """Build a :class:`Rig` from a parsed YAML mapping (``cameras``, ``imu_to_camera``)."""
-    if 'cameras' not in data:
-        raise InputError(f'{source}: missing key "cameras" (a list of cameras)')
-    unknown = sorted(set(data) - {'cameras', 'imu_to_camera'})
-    if unknown:
-        raise InputError(f'{source}: unknown key(s) {", ".join(map(str, unknown))}; '
-                         'expected cameras and optionally imu_to_camera')
+    try:
+        check_mapping(data, RIG_SCHEMA, 'a rig file')
+    except InputError as exc:
+        raise InputError(f'{source}: {exc}') from None
     entries = data['cameras']
     if not isinstance(entries, list) or not entries:
         raise InputError(f'{source}: "cameras" must be a non-empty list')

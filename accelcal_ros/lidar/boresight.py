@@ -48,6 +48,7 @@ from accelcal_ros.lidar.wahba import (check_constrained, holdout, observability_
                                       rpy_std_deg, solve_wahba)
 from accelcal_ros.recording.progress import track
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
+from accelcal_ros.uncertainty import floor_each_at_known_error, KnownError
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -218,9 +219,48 @@ def calibrate_boresight(positions: Sequence[StaticPosition], prior: Optional[Arr
                     'closer prior or without one')
     cov, _ = rotation_covariance(r, normals, gravity, weights)
     rpy = np.degrees(rpy_radians_from_rotation(r))
-    return BoresightResult(r, rpy, rpy_std_deg(r, cov), cov, names, normals, gravity,
-                           weights, errors, holdout(normals, gravity, weights), dropped,
-                           warn, inliers)
+    checks = holdout(normals, gravity, weights)
+    std, cov = _honest_std(r, cov, checks, off if off >= 0.9 * search.max_tilt_deg else None,
+                           warn)
+    return BoresightResult(r, rpy, std, cov, names, normals, gravity, weights, errors, checks,
+                           dropped, warn, inliers)
+
+
+HALVES_95 = float(np.sqrt(-2.0 * np.log(0.05)))
+"""95 % radius of a 2-D unit normal (chi-square, 2 degrees of freedom): 2.45."""
+
+
+def _honest_std(rotation: np.ndarray, cov: np.ndarray, checks: Dict[str, Any],
+                off_limit_deg: Optional[float],
+                warn: List[str]) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return ``(rpy_std_deg, covariance)`` never below the errors the checks know of.
+
+    Two half fits (even and odd positions, :func:`holdout`) each have twice the full fit's
+    variance, their difference four times: over two constrained axes a difference of ``d``
+    deg is beyond the 95 % level (``2.45`` standard deviations, chi-square with 2 degrees
+    of freedom) unless the per-angle standard deviation is at least ``d / (2 x 2.45)``;
+    a smaller one is refuted by the check. A result at the floor search's limit
+    (``off_limit_deg`` from the prior) may have its floors on other planes: its error is not
+    below that distance. The covariance is scaled with the largest raise; the reason goes
+    into ``warn``.
+    """
+    std = rpy_std_deg(rotation, cov)
+    known = []
+    halves = checks.get('even_vs_odd_rotation')
+    if halves is not None:
+        known.append(KnownError(halves / (2.0 * HALVES_95), f'the two half fits (even and '
+                                f'odd positions) differ by {halves:.3g} deg (hold-out check)'))
+    if off_limit_deg is not None:
+        known.append(KnownError(off_limit_deg, f'the result is {off_limit_deg:.1f} deg from '
+                                'the prior, at the floor search limit: the floors may be other '
+                                'planes (search-limit check)'))
+    raised, note = floor_each_at_known_error(std, known, ' deg', 'rpy_std_deg')
+    if note is None:
+        return std, cov
+    warn.append(note)
+    ratio = float(np.max(raised / np.maximum(std, 1e-300)))
+    return raised, cov * ratio ** 2
 
 
 def _rpy_text(rotation: np.ndarray) -> str:

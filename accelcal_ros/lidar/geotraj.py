@@ -31,10 +31,11 @@ from accelcal_ros.lidar.geodesy import (check_geodetic, ecef_from_enu, enu_from_
                                         zone_crossing)
 from accelcal_ros.lidar.georef import georeference, GeorefStats, PoseInterpolator
 from accelcal_ros.lidar.poses import PoseStream
+from accelcal_ros.schema import TRAJECTORY_CSV
 import numpy as np
 from numpy.typing import ArrayLike
 
-TRAJECTORY_COLUMNS = ('t', 'lat', 'lon', 'h', 'roll', 'pitch', 'yaw')
+TRAJECTORY_COLUMNS = TRAJECTORY_CSV.required
 
 
 @dataclass

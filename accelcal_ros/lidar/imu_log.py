@@ -9,6 +9,7 @@ from typing import Optional
 
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import RECORDING_CSV
 from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 
@@ -24,11 +25,15 @@ class ImuLog:
 
 def read_imu_csv(path: str) -> 'ImuLog':
     """Read an IMU CSV log into an :class:`ImuLog`."""
-    cols = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'), ('gx', 'gy', 'gz'))
+    cols = read_numeric_csv(path, RECORDING_CSV.required, RECORDING_CSV.optional)
     t = cols['t']
     accel = np.stack([cols['ax'], cols['ay'], cols['az']], axis=1)
     gyro = None
-    if all(k in cols for k in ('gx', 'gy', 'gz')):
+    present = [k for k in ('gx', 'gy', 'gz') if k in cols]
+    if present and len(present) != 3:
+        raise FileFormatError(path, f'gyro columns {present}: give all of gx,gy,gz (rad/s) '
+                              'or none', 1)
+    if present:
         gyro = np.stack([cols['gx'], cols['gy'], cols['gz']], axis=1)
     if t.size == 0:
         raise FileFormatError(path, 'no samples after the header')

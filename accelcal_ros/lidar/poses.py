@@ -11,10 +11,11 @@ from typing import Optional, Tuple
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import POSES_CSV
 from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 
-POSE_COLUMNS = ('t', 'x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
+POSE_COLUMNS = POSES_CSV.required
 MAX_POSITION_M = 1e8
 """Largest plausible coordinate (m): ECEF and UTM stay below 1e7 m."""
 MAX_TIME_S = 1e11

@@ -48,10 +48,11 @@ class ViewPath:
     @classmethod
     def load(cls, path: str) -> 'ViewPath':
         """Read a path CSV (errors name the file and line)."""
+        from accelcal_ros.schema import VIEW_PATH_CSV
         from accelcal_ros.textformats import read_numeric_csv
 
         table: Dict[str, np.ndarray] = read_numeric_csv(
-            path, ('t', 'azimuth', 'elevation', 'fov_h'), finite=True, increasing='t')
+            path, VIEW_PATH_CSV.required, finite=True, increasing='t')
         return cls(table['t'], table['azimuth'], table['elevation'], table['fov_h'], path)
 
     def at(self, t_s: float) -> ViewPose:

@@ -14,9 +14,7 @@ the camera is calibrated again without it.
 from dataclasses import dataclass, field
 from typing import Dict, List, Sequence, Tuple, TypeVar
 
-from accelcal_ros.camera import camera_model_from_mapping
-from accelcal_ros.errors import CalibrationError, FileFormatError, InputError
-from accelcal_ros.textformats import load_yaml_mapping
+from accelcal_ros.errors import CalibrationError, FileFormatError
 import cv2
 import numpy as np
 
@@ -104,15 +102,12 @@ def calibrate_camera(name: str, views: Dict[str, np.ndarray], object_points: np.
 
 def load_camera_info(path: str) -> Tuple[str, Intrinsics]:
     """Read a camera_calibration YAML; return ``(camera_name, Intrinsics)``."""
-    data = load_yaml_mapping(path, 'camera_info file')
-    try:
-        model = camera_model_from_mapping(data, 'camera_info file')
-    except InputError as exc:
-        raise FileFormatError(path, str(exc)) from None
+    from accelcal_ros.camera.camera_info import load_camera_info as load_file
+
+    name, model = load_file(path)
     if model.is_fisheye:
         raise FileFormatError(path, 'equidistant (fisheye) distortion is not supported by '
                               'rig calibration; use plumb_bob or rational_polynomial')
-    name = str(data.get('camera_name') or '')
     return name, Intrinsics(np.array(model.K), np.array(model.D), model.size,
                             source=f'file {path}')
 

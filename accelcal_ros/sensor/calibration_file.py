@@ -28,12 +28,14 @@ boresight and the offline commands, so its format lives here, below them.
 from dataclasses import dataclass
 import datetime
 
-from typing import Any, Optional
+from typing import Any, List, Optional
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import check_mapping, Key
 from accelcal_ros.sensor.model import MODELS, SensorModel
 from accelcal_ros.textformats import dump_yaml, load_yaml_mapping, yaml_number
+from accelcal_ros.uncertainty import floor_at_known_error, KnownError
 import numpy as np
 
 FORMAT = 'accelcal_ros/calibration 1'
@@ -110,6 +112,27 @@ class CalibrationRecord:
     misalignment_std: np.ndarray
     predicted_tilt_error_deg: float
     data: dict
+    notes: tuple = ()
+    """Why a reported value was changed on reading (an uncertainty raised to a known error)."""
+
+
+def tilt_error_known_deg(holdout_rms_g: Optional[float],
+                         residual_rms_g: Optional[float]) -> List[KnownError]:
+    """
+    Return the tilt errors (deg) a calibration's own residuals already show.
+
+    A residual of ``r`` g (eq. 5: ``|f| - 1`` at a position) is an error of the corrected
+    field of at least ``r`` g; in a direction the fit did not see (the hold-out) it can
+    tilt ``f`` by ``asin(r)``. A predicted roll/pitch error below that is overconfident.
+    """
+    known = []
+    for value, what in ((holdout_rms_g, 'hold-out'), (residual_rms_g, 'fit')):
+        if value is not None and np.isfinite(value) and value > 0:
+            known.append(KnownError(
+                float(np.degrees(np.arcsin(min(1.0, value)))),
+                f'the {what} residual RMS {value * 1e3:.2f} mg is an error of the corrected '
+                f'field that can tilt it by asin({value:.2g}) (calibration check)'))
+    return known
 
 
 def _is_number(value: Any) -> bool:
@@ -170,7 +193,7 @@ def _count(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
-SCHEMA = {
+SCHEMA = {key: Key(what, check) for key, (what, check) in {
     'format': ('the string "' + FORMAT + '"', _text),
     'model': (f'one of {", ".join(MODELS)}', _text),
     'scale': ('3 numbers', None),
@@ -190,7 +213,7 @@ SCHEMA = {
     'created': ('a UTC time', _created),
     'captures_g': ('a list of [x, y, z] (g)', _captures),
     'residuals_g': ('a list of numbers (g)', _number_list),
-}
+}.items()}
 """Every key a calibration file may hold: ``(what it must be, check)`` (the vectors are
 checked by ``_vector``). Required: ``model``, ``scale``, ``bias``, and ``misalignment`` for
 ``model: full``; ``format`` when present must be :data:`FORMAT`. Any other key is refused
@@ -198,13 +221,10 @@ checked by ``_vector``). Required: ``model``, ``scale``, ``bias``, and ``misalig
 
 
 def _check_schema(path: str, data: dict) -> None:
-    unknown = sorted(str(k) for k in data if k not in SCHEMA)
-    if unknown:
-        raise FileFormatError(path, f'unknown key(s) {", ".join(unknown)}; a calibration file '
-                              f'holds only {", ".join(SCHEMA)} (misspelt?)')
-    for key, (what, check) in SCHEMA.items():
-        if check is not None and key in data and not check(data[key]):
-            raise FileFormatError(path, f'"{key}" must be {what}, got {data[key]!r}')
+    try:  # required keys: _vector, with the calibration's own message
+        check_mapping(data, SCHEMA, 'a calibration file')
+    except InputError as exc:
+        raise FileFormatError(path, str(exc)) from None
     if 'format' in data and data['format'] != FORMAT:
         raise FileFormatError(path, f'unknown format {data["format"]!r}: this version reads '
                               f'"{FORMAT}" (written by a newer accelcal_ros? update it)')
@@ -244,12 +264,19 @@ def load_calibration(path: str) -> CalibrationRecord:
     if np.isfinite(predicted) and not low <= predicted <= high or np.isinf(predicted):
         raise FileFormatError(path, f'"predicted_tilt_error_deg" = {predicted!r} is outside '
                               f'{low:g} .. {high:g} deg; recalibrate or fix the file')
+    notes = []
+    if np.isfinite(predicted):  # never below the error the file's own residuals show
+        predicted, note = floor_at_known_error(
+            predicted, tilt_error_known_deg(yaml_number(data.get('holdout_rms_g')),
+                                            yaml_number(data.get('residual_rms_g'))),
+            ' deg', 'predicted roll/pitch error')
+        notes += [note] if note else []
     return CalibrationRecord(
         sensor_model, model,
         _vector(path, data, 'scale_std', required=False, default=zeros),
         _vector(path, data, 'bias_std', required=False, default=zeros),
         _vector(path, data, 'misalignment_std', required=False, default=zeros),
-        predicted, data)
+        predicted, data, tuple(notes))
 
 
 def load_sensor_model(path: str) -> SensorModel:

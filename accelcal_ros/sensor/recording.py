@@ -12,6 +12,7 @@ from typing import Tuple
 
 from accelcal_ros.errors import FileFormatError
 from accelcal_ros.fileio import write_text_atomic
+from accelcal_ros.schema import RECORDING_CSV
 from accelcal_ros.textformats import read_numeric_csv
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,7 +22,8 @@ CSV_HEADER = 't,ax,ay,az'
 
 def load_recording(path: str) -> Tuple[np.ndarray, np.ndarray]:
     """Return ``(t [N] s, acceleration [N, 3] m/s^2)`` from a recording CSV."""
-    columns = read_numeric_csv(path, ('t', 'ax', 'ay', 'az'), finite=True, increasing='t')
+    columns = read_numeric_csv(path, RECORDING_CSV.required, RECORDING_CSV.optional,
+                               finite=True, increasing='t')
     if columns['t'].size == 0:
         raise FileFormatError(path, 'recording has a header but no samples', 2)
     accel = np.stack([columns['ax'], columns['ay'], columns['az']], axis=1)

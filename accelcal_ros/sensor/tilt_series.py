@@ -29,9 +29,10 @@ STOPPED_M_S = 0.05
 
 def read_odometry_csv(path: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return ``(t s, v m/s, yaw_rate rad/s)`` of an odometry CSV (see the module text)."""
+    from accelcal_ros.schema import ODOMETRY_CSV
     from accelcal_ros.textformats import read_numeric_csv
 
-    columns = read_numeric_csv(path, ('t', 'v', 'yaw_rate'), finite=True)
+    columns = read_numeric_csv(path, ODOMETRY_CSV.required, finite=True)
     t = columns['t']
     if t.size < 2:
         raise FileFormatError(path, 'odometry needs at least 2 rows (t,v,yaw_rate)', 2)
