@@ -27,10 +27,9 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.drive_sim import Drive, DRIVE_SEGMENTS, simulate_drive, still_readings
-from accelcal_ros.sensor.model import SensorModel
-from accelcal_ros.sensor.odometry_aid import accel_series_g
 from accelcal_ros.sensor.tilt import TiltEstimator
 from accelcal_ros.sensor.tilt_filter import AttitudeFilter, FilterSettings
+from accelcal_ros.sensor.tilt_series import estimate_series
 import numpy as np
 
 FOCAL_PX = 1100.0
@@ -48,22 +47,14 @@ def _up(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
 
 def _package(drive: Drive, gyro: bool, odometry: bool,
              settings: Optional[FilterSettings] = None) -> Estimate:
-    filt = AttitudeFilter(SensorModel.identity(),
-                          tuple(datasheet_noise_std_g(drive.rate_hz).tolist()),
+    """Run the package's filter on the drive, by the path ``accelcal attitude`` takes."""
+    est = estimate_series(drive.t, drive.accel_g, drive.gyro_rad_s if gyro else None,
+                          (drive.odo_t, drive.odo_speed, drive.odo_yaw_rate) if odometry
+                          else None, drive.lever_arm_m,
+                          noise_std_g=tuple(datasheet_noise_std_g(drive.rate_hz).tolist()),
                           settings=settings)
-    accel = drive.accel_g.tolist()
-    rates = drive.gyro_rad_s.tolist() if gyro else [None] * len(accel)
-    platform: List[Optional[list]] = [None] * len(accel)
-    if odometry:
-        series = accel_series_g(drive.t, drive.odo_t, drive.odo_speed, drive.odo_yaw_rate,
-                                drive.lever_arm_m)
-        platform = [None if math.isnan(row[0]) else row for row in series.tolist()]
-    roll = np.full(len(accel), np.nan)
-    pitch = np.full(len(accel), np.nan)
-    for k, (ti, ai, gi, pi) in enumerate(zip(drive.t.tolist(), accel, rates, platform)):
-        est = filt.update(ti, ai, gi, pi)
-        if est is not None:
-            roll[k], pitch[k] = est.roll, est.pitch
+    roll = np.array([np.nan if e is None else e.roll for e in est])
+    pitch = np.array([np.nan if e is None else e.pitch for e in est])
     return roll, pitch
 
 
@@ -73,7 +64,7 @@ def _from_up(up: np.ndarray) -> Estimate:
 
 
 def _fusion(drive: Drive, rejection_deg: float = 10.0, timeout_s: float = 5.0,
-            stationary_s: float = 3.0) -> Estimate:
+            gyro_rad_s: Optional[np.ndarray] = None) -> Estimate:
     import imufusion
 
     settings = imufusion.AhrsSettings()
@@ -85,12 +76,12 @@ def _fusion(drive: Drive, rejection_deg: float = 10.0, timeout_s: float = 5.0,
     settings.sample_rate = drive.rate_hz
     ahrs = imufusion.Ahrs()
     ahrs.set_settings(settings)
+    ahrs.set_sample_period(1.0 / drive.rate_hz)   # the default is 0.01 s (100 Hz)
     bias = imufusion.Bias()
     bias_settings = imufusion.BiasSettings()
     bias_settings.sample_rate = drive.rate_hz
-    bias_settings.stationary_period = stationary_s
     bias.set_settings(bias_settings)
-    gyro_deg = np.degrees(drive.gyro_rad_s)
+    gyro_deg = np.degrees(drive.gyro_rad_s if gyro_rad_s is None else gyro_rad_s)
     up = np.empty((drive.t.size, 3))
     for k in range(drive.t.size):
         rate = bias.update(gyro_deg[k])
@@ -99,47 +90,63 @@ def _fusion(drive: Drive, rejection_deg: float = 10.0, timeout_s: float = 5.0,
     return _from_up(up / np.linalg.norm(up, axis=1, keepdims=True))
 
 
-def _ahrs_filter(name: str, tuned: bool = False) -> Callable[[Drive], Estimate]:
-    def run(drive: Drive) -> Estimate:
-        from ahrs.filters import Madgwick, Mahony
+def _ahrs(drive: Drive, name: str, gains: Dict[str, float],
+          gyro_rad_s: Optional[np.ndarray] = None) -> Estimate:
+    from ahrs.filters import Madgwick, Mahony
 
-        gains: Dict[str, float] = {}
-        if tuned and name == 'Mahony':
-            gains = {'k_P': MAHONY_TUNED_KP, 'k_I': MAHONY_TUNED_KI}
-        elif tuned:
-            gains = {'gain': MADGWICK_TUNED_BETA, 'gain_imu': MADGWICK_TUNED_BETA}
-        cls = Mahony if name == 'Mahony' else Madgwick
-        filt = cls(frequency=drive.rate_hz, **gains)
-        q = np.array([1.0, 0.0, 0.0, 0.0])
-        acc = drive.accel_g * 9.80665
-        up = np.empty((drive.t.size, 3))
-        for k in range(drive.t.size):
-            q = filt.updateIMU(q, drive.gyro_rad_s[k], acc[k])
-            w, x, y, z = q
-            up[k] = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-        return _from_up(up)
+    cls = Mahony if name == 'Mahony' else Madgwick
+    filt = cls(frequency=drive.rate_hz, **gains)
+    gyro = drive.gyro_rad_s if gyro_rad_s is None else gyro_rad_s
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    acc = drive.accel_g * 9.80665
+    up = np.empty((drive.t.size, 3))
+    for k in range(drive.t.size):
+        q = filt.updateIMU(q, gyro[k], acc[k])
+        w, x, y, z = q
+        up[k] = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    return _from_up(up)
+
+
+MADGWICK_BETA_NOISE = math.sqrt(0.75) * math.radians(0.38)
+"""Madgwick's beta from his paper's rule ``sqrt(3/4) * gyro error`` (ITG-3205 noise, rad/s)."""
+TUNED_GRIDS: Dict[str, List[Dict[str, float]]] = {
+    'Fusion': [{'rejection_deg': r, 'timeout_s': t} for r, t in ((10, 5), (5, 10), (2, 20))],
+    'Mahony': [{'k_P': kp, 'k_I': kp / 25.0} for kp in (0.2, 0.05, 0.01)],
+    'Madgwick': [{'gain': b, 'gain_imu': b} for b in (0.033, MADGWICK_BETA_NOISE, 0.001)],
+}
+"""Settings tried for the ``tuned`` anchors; the row shows the best p95 of its grid."""
+OFFSET_S = 4.0
+"""The tuned anchors get the gyro offset measured over the drive's first still seconds."""
+
+
+def _tuned(name: str) -> Callable[[Drive], Estimate]:
+    def run(drive: Drive) -> Estimate:
+        gyro = drive.gyro_rad_s - drive.gyro_rad_s[drive.t < OFFSET_S].mean(axis=0)
+        best: Optional[Tuple[float, Estimate]] = None
+        for setting in TUNED_GRIDS[name]:
+            est = _fusion(drive, gyro_rad_s=gyro, **setting) if name == 'Fusion' \
+                else _ahrs(drive, name, setting, gyro)
+            p95 = score(drive, *est)['p95_deg']
+            if best is None or p95 < best[0]:
+                best = (p95, est)
+        assert best is not None
+        return best[1]
     return run
 
 
-MADGWICK_TUNED_BETA = math.sqrt(0.75) * math.radians(0.38)
-"""Madgwick's beta from his paper's rule ``sqrt(3/4) * gyro error`` (ITG-3205 noise, rad/s)."""
-MAHONY_TUNED_KP = 1.0 / 5.0
-"""Mahony's k_P for the package's crossover (``gyro_time_constant_s`` = 5 s; rad/s)."""
-MAHONY_TUNED_KI = MAHONY_TUNED_KP / 20.0 / 5.0
-"""Mahony's k_I for the package's bias integral (20 time constants)."""
-
 ANCHORS: Dict[str, Tuple[str, Callable[[Drive], Estimate]]] = {
     'Fusion (imufusion)': ('imufusion', _fusion),
-    'Mahony (ahrs)': ('ahrs', _ahrs_filter('Mahony')),
-    'Madgwick (ahrs)': ('ahrs', _ahrs_filter('Madgwick')),
-    'Fusion tuned (imufusion)': ('imufusion', lambda d: _fusion(d, 2.0, 20.0, 1.0)),
-    'Mahony tuned (ahrs)': ('ahrs', _ahrs_filter('Mahony', True)),
-    'Madgwick tuned (ahrs)': ('ahrs', _ahrs_filter('Madgwick', True)),
+    'Mahony (ahrs)': ('ahrs', lambda d: _ahrs(d, 'Mahony', {})),
+    'Madgwick (ahrs)': ('ahrs', lambda d: _ahrs(d, 'Madgwick', {})),
+    'Fusion tuned (imufusion)': ('imufusion', _tuned('Fusion')),
+    'Mahony tuned (ahrs)': ('ahrs', _tuned('Mahony')),
+    'Madgwick tuned (ahrs)': ('ahrs', _tuned('Madgwick')),
 }
-"""Anchors: x-io's documented Fusion settings and ahrs' default gains, then the same
-filters set for this data (Fusion: the package's 2 deg rejection and 20 s timeout, its
-gyro offset learnt after 1 s of stillness instead of 3 s, the drive's stops last 5 s;
-Madgwick: beta from the gyro noise; Mahony: the package's 5 s crossover)."""
+"""Anchors: x-io's documented Fusion settings (gain 0.5, rejection 10 deg, recovery 5 s,
+its run-time gyro offset) and ahrs' default gains; then each filter given the gyro
+offset of the first still seconds and the best of a small grid of its settings on these
+samples (:data:`TUNED_GRIDS`: Fusion's rejection and timeout, Mahony's k_P with
+k_I = k_P / 25, Madgwick's beta including his noise rule) -- favourable to the anchors."""
 
 
 def score(drive: Drive, roll: np.ndarray, pitch: np.ndarray) -> Dict[str, float]:

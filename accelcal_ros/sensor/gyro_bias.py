@@ -88,28 +88,30 @@ class GyroBiasEstimator:
         self.bias = bias
 
     def add(self, t_start: float, t_end: float, mean: Tuple[float, float, float],
-            count: int) -> None:
+            count: int, prior: Optional[list] = None) -> None:
         """Add the mean rate of ``count`` samples from ``t_start`` to ``t_end`` (s)."""
         t = 0.5 * (t_start + t_end)
         n = float(max(1, count))
         run = self._run
         if not run or t - run[1] > self.gap_s + (t_end - t_start) or t < run[1]:
-            prior_var = self.variance
-            if math.isfinite(prior_var):
-                prior_var += (self.drift_rad_s2 * max(0.0, t - self.time)) ** 2
-            # t0, last t, prior bias, prior variance, sums: w, wt, wtt, then per axis
-            # wy, wty, wyy
-            run = self._run = [t, t, self.bias, prior_var, [0.0, 0.0, 0.0],
+            if prior is None:
+                prior_var = self.variance
+                if math.isfinite(prior_var):
+                    prior_var += (self.drift_rad_s2 * max(0.0, t - self.time)) ** 2
+                prior = [self.bias, prior_var, self.time]
+            # t0, last t, prior bias, prior variance, its time, sums: w, wt, wtt, then
+            # per axis wy, wty, wyy
+            run = self._run = [t, t, prior[0], prior[1], prior[2], [0.0, 0.0, 0.0],
                                [[0.0] * 3 for _ in range(3)]]
         forget = math.exp(-(t - run[1]) / self.memory_s)
         run[1] = t
         x = t - run[0]
-        s = run[4]
+        s = run[5]
         s[0] = s[0] * forget + n
         s[1] = s[1] * forget + n * x
         s[2] = s[2] * forget + n * x * x
         for k, y in enumerate(mean):
-            a = run[5][k]
+            a = run[6][k]
             a[0] = a[0] * forget + n * y
             a[1] = a[1] * forget + n * x * y
             a[2] = a[2] * forget + n * y * y
@@ -122,11 +124,11 @@ class GyroBiasEstimator:
     def _estimate(self) -> None:
         run = self._run
         x = self._eval_t
-        w, wt, wtt = run[4]
+        w, wt, wtt = run[5]
         mean_t = wt / w
         sxx = wtt - wt * wt / w
         means, slopes_raw, resid = [], [], 0.0
-        for a in run[5]:
+        for a in run[6]:
             sxy = a[1] - wt * a[0] / w
             syy = a[2] - a[0] * a[0] / w
             means.append(a[0] / w)
@@ -136,7 +138,8 @@ class GyroBiasEstimator:
         if blocks < 3:
             sample_var = math.radians(1.0) ** 2 * self._n_last   # no scatter yet: loose
         else:
-            sample_var = resid / 3.0 / (blocks - 2) * (w / blocks)
+            # each block's weighted squared residual is one sample's variance
+            sample_var = resid / 3.0 / (blocks - 2)
         var_mean = sample_var / w
         # the slope, shrunk towards 0 by its prior (a drift of about drift_rad_s2)
         var_s = sample_var / sxx if sxx > 1e-12 else math.inf

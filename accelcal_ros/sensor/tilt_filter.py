@@ -275,7 +275,8 @@ class AttitudeFilter:
                      still and not self.rejecting and not platform_moving
                      and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
         # the fast and the still averages (always: the fallback and the still output)
-        a_fast = low_pass_gain(dt, settings.moving_time_constant_s)
+        a_fast = low_pass_gain(dt, settings.odometry_time_constant_s if aided_by_odometry
+                               else settings.moving_time_constant_s)
         fast = self._fast
         self._fast_n += 1
         if fast is None:
@@ -386,7 +387,8 @@ class AttitudeFilter:
             ty[1] += t * fy
             ty[2] += t * fz
             den = n * sums[2] - sums[1] * sums[1]
-            if n < 8 or den <= 1e-18:
+            shrink = (4.0 * n - 2.0) / (n * (n + 1.0))
+            if n < 8 or den <= 1e-18 or shrink >= shrink_dema:   # the moving one is better
                 return dema, shrink_dema
             mean_t = sums[1] / n
             level, slope = [], []
@@ -396,7 +398,6 @@ class AttitudeFilter:
                 level.append(sums[3 + k] / n + m * (t - mean_t))
             out = (level[0], level[1], level[2])
             state[0] = out
-            shrink = (4.0 * n - 2.0) / (n * (n + 1.0))
             if a > 0.0 and 1.0 / n < a:   # the line spans the time constant: go on as 2S - S2
                 d = [m * dt * (1.0 - a) / a for m in slope]
                 state[1] = 'holt'
@@ -461,12 +462,6 @@ class AttitudeFilter:
         if found is None:
             return vx, vy, vz
         ex, ey, ez, weight = found
-        if self._up_n >= 100:
-            # the integral term: a steady error along h is a bias error
-            ki = weight * dt / (BIAS_INTEGRAL_TIME_CONSTANT_S * tau)
-            cx, cy, cz = ey * vz - ez * vy, ez * vx - ex * vz, ex * vy - ey * vx
-            b = self._bias_est.bias
-            self._bias_est.adjust((b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz))
         k = low_pass_gain(dt, tau) * weight
         return vx + k * ex, vy + k * ey, vz + k * ez
 

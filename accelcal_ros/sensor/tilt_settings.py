@@ -39,6 +39,10 @@ class FilterSettings:
     """Steady acceleration the platform may have (g; 0: the rig does not ride a vehicle)."""
     odometry_accel_std_g: float = 0.02
     """Uncertainty of the platform acceleration derived from odometry (g)."""
+    odometry_time_constant_s: float = 0.5
+    """The low-pass while moving when odometry removes the platform's acceleration (s):
+    what is left is vibration and odometry noise (0.04 s would pass 0.3 deg of it), and
+    the double low-pass does not lag behind the body's steady roll in a turn."""
     vertical_aid_time_constant_s: float = 3.0
     """While the accelerometer is rejected, the pull along the horizontal acceleration from
     the specific force's vertical component staying 1 g (s; 0: off; a vehicle)."""
