@@ -224,6 +224,25 @@ def check_targets(rows: List[dict]) -> List[str]:
     return lines
 
 
+def seed_spread(rate_hz: float, seeds: int) -> List[str]:
+    """Return lines: p95 and max of the package's aided rows over seeds 0 .. seeds - 1."""
+    results: Dict[str, List[Tuple[float, float]]] = {
+        '+ odometry': [], '+ gyro': [], '+ gyro + odometry': []}
+    for seed in range(seeds):
+        drive = simulate_drive(rate_hz=rate_hz, seed=seed)
+        for name, gyro, odometry in (('+ odometry', False, True), ('+ gyro', True, False),
+                                     ('+ gyro + odometry', True, True)):
+            stats = score(drive, *_package(drive, gyro, odometry))
+            results[name].append((stats['p95_deg'], stats['max_deg']))
+    lines = [f'Spread over seeds 0-{seeds - 1} at {rate_hz:g} Hz (deg): p95 min / median / '
+             'max, and the largest max']
+    for name, values in results.items():
+        p95 = np.array([v[0] for v in values])
+        lines.append(f'{name:<24} p95 {p95.min():.3f} / {np.median(p95):.3f} / '
+                     f'{p95.max():.3f}   max {max(v[1] for v in values):.3f}')
+    return lines
+
+
 def still_jitter(rate_hz: float, seconds: float = 30.0, seed: int = 0) -> Dict[str, float]:
     """Return the 25 fps horizon jitter (px rms) of a still rig: one sample vs the filter."""
     t, raw = still_readings(rate_hz, seconds, seed=seed)
