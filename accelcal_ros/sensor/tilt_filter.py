@@ -474,6 +474,8 @@ class AttitudeFilter:
         ux, uy, uz = fx * inv, fy * inv, fz * inv
         cov = self.tilt.force_covariance_list_g2
         r_var = (cov[0] + cov[4] + cov[8]) / 3.0
+        if aided_by_odometry:   # what the odometry's acceleration may be off by
+            r_var += settings.odometry_accel_std_g ** 2
         up = self._up
         if up is None:   # (re)start from the accelerometer's current average
             sx, sy, sz = out

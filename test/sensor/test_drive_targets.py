@@ -1,7 +1,8 @@
 """Issue 20's targets through the simulated drive, on several seeds and at 100 and 800 Hz.
 
-Spread over 8 seeds (README "Attitude at rest and in motion"): gyro p95 0.22-0.53 deg,
-max <= 0.64; odometry p95 0.35-0.41, max <= 0.79; both p95 0.16-0.28, max <= 0.45.
+Spread over seeds 0-7 at 100 / 800 Hz (README "Attitude at rest and in motion"): gyro
+p95 0.25-0.35 / 0.22-0.44 deg, max <= 0.64; odometry p95 0.35-0.41, max <= 0.91; both
+p95 0.12-0.33, max <= 0.42.
 """
 import math
 
