@@ -25,3 +25,16 @@ def test_gyro_no_worse_than_every_anchor_and_odometry_within_1_deg(seed):
     assert rows['+ gyro + odometry']['max_deg'] <= 1.0
     text = '\n'.join(study.format_rows(list(rows.values()), 100.0))
     assert 'Madgwick tuned (ahrs)' in text and 'Fusion tuned (imufusion)' in text
+
+
+def test_seed_spread_lines(capsys):
+    from accelcal_ros.cli import main
+
+    assert main(['study', 'motion', '--no-anchors', '--seeds', '2']) == 0
+    out = capsys.readouterr().out
+    assert 'Spread over seeds 0-1 at 100 Hz' in out
+    for name in ('+ odometry', '+ gyro', '+ gyro + odometry'):
+        line = [ln for ln in out.splitlines() if ln.startswith(f'{name:<24} p95 ')]
+        assert len(line) == 1
+        low, mid, high = (float(v) for v in line[0].split('p95')[1].split('max')[0].split('/'))
+        assert low <= mid <= high <= 1.0
