@@ -1,7 +1,8 @@
 """
 Offline commands of the attitude feature.
 
-* ``accelcal study motion [--rates 100 800] [--drive-out drive.csv --odometry-out odo.csv]``:
+* ``accelcal study motion [--rates 100 800] [--seeds N] [--drive-out drive.csv
+  --odometry-out odo.csv]``:
   roll/pitch error through a simulated drive for accelerometer only, + odometry, + gyro,
   + both, beside the ``imufusion``/``ahrs`` anchors (:mod:`accelcal_ros.attitude.study`);
   optionally writes the drive as a recording (``t,ax,ay,az,gx,gy,gz``; s, m/s^2, rad/s)
@@ -27,6 +28,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='sample rates in Hz (default 100)')
     p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
     p.add_argument('--no-anchors', action='store_true', help='skip imufusion and ahrs')
+    p.add_argument('--seeds', type=nonnegative_int, default=0,
+                   help="also the spread of the aided rows' p95 over seeds 0 .. N-1")
     p.add_argument('--drive-out', help="also write the (first rate's) drive as a CSV "
                    'recording t,ax,ay,az,gx,gy,gz (s, m/s^2, rad/s)')
     p.add_argument('--odometry-out', help='also write its odometry as CSV t,v,yaw_rate')
@@ -52,6 +55,9 @@ def _study(args):
         verdict = study.check_targets(rows)
         for line in verdict:
             print(line)
+        if args.seeds > 1:
+            for line in study.seed_spread(rate, args.seeds):
+                print(line)
         if args.panorama_every:
             for line in _panorama_horizon(args, rate):
                 print(line)

@@ -70,7 +70,7 @@ ATTITUDE_PARAMS = (
     ParamSpec('rejection_timeout_s', _FILTER.rejection_timeout_s, 'Gyro-aided: longest time '
               'the accelerometer is ignored.', minimum=0.1, maximum=3600.0, unit='s'),
     ParamSpec('bias_time_constant_s', _FILTER.bias_time_constant_s, 'Gyro bias: memory of '
-              'the estimate while still.', minimum=0.05, maximum=600.0, unit='s'),
+              'its line fit within one still period.', minimum=0.05, maximum=600.0, unit='s'),
     ParamSpec('gyro_noise_std_rad_s', _FILTER.gyro_noise_std_rad_s, 'Gyro noise per sample '
               '(ITG-3205: 0.38 deg/s).', minimum=0.0, maximum=1.0, unit='rad/s'),
     ParamSpec('platform_accel_g', _FILTER.platform_accel_g, 'Steady acceleration the '

@@ -25,6 +25,8 @@ import math
 from typing import Any, Optional, Tuple
 
 from accelcal_ros.errors import DeviceError, InputError
+from accelcal_ros.sensor.gyro_sampling import (  # noqa: F401 (part of this module's API)
+    DLPF_BANDWIDTHS_HZ, DLPF_DELAY_S, dlpf_for_rate)
 
 WHO_AM_I = 0x00
 SMPLRT_DIV = 0x15
@@ -40,7 +42,6 @@ WHO_AM_I_VALUES = (0x68, 0x69)
 VALID_ADDRESSES = (0x68, 0x69)
 FS_SEL_2000 = 0x18
 """``FS_SEL`` = 3 in DLPF_FS (bits 4-3): the only valid full scale."""
-DLPF_BANDWIDTHS_HZ = {0: 256.0, 1: 188.0, 2: 98.0, 3: 42.0, 4: 20.0, 5: 10.0, 6: 5.0}
 LSB_PER_DEG_S = 14.375
 FULL_SCALE_RAD_S = math.radians(2000.0)
 RAW_DATA_RDY = 0x01
@@ -48,14 +49,6 @@ H_RESET = 0x80
 CLK_PLL_X = 0x01
 NOISE_RMS_DEG_S = 0.38
 """Total rms noise at 100 Hz bandwidth (product specification, table 2)."""
-
-
-def dlpf_for_rate(rate_hz: float) -> int:
-    """Return the DLPF_CFG code whose bandwidth is the widest below half ``rate_hz``."""
-    for code in (1, 2, 3, 4, 5, 6):
-        if DLPF_BANDWIDTHS_HZ[code] <= rate_hz / 2.0:
-            return code
-    return 6
 
 
 def sample_rate_divider(rate_hz: float) -> int:
@@ -85,6 +78,8 @@ class Itg3205:
         self.address = address
         self.bus_number = bus_number
         self.rate_hz = float('nan')
+        self.bandwidth_hz = float('nan')
+        self.delay_s = 0.0
 
     def _where(self) -> str:
         bus = f'I2C bus {self.bus_number}, ' if self.bus_number is not None else ''
@@ -101,15 +96,23 @@ class Itg3205:
             raise DeviceError(f'{self._where()}: WHO_AM_I read 0x{value:02X}, expected 0x68 or '
                               '0x69: not an ITG-3205 (wrong address or another chip)')
 
-    def configure(self, rate_hz: float) -> None:
-        """Reset, select the PLL clock, +-2000 deg/s, the low-pass for ``rate_hz``, the rate."""
+    def configure(self, rate_hz: float, max_bandwidth_hz: Optional[float] = None) -> None:
+        """
+        Reset, select the PLL clock, +-2000 deg/s, the low-pass, the rate ``rate_hz``.
+
+        The low-pass is the widest below half the sample rate and below
+        ``max_bandwidth_hz`` (half the rate at which the caller reads: what it does not
+        read would alias); :attr:`delay_s` is its group delay.
+        """
         divider = sample_rate_divider(rate_hz)
+        limit = rate_hz if max_bandwidth_hz is None else min(rate_hz, 2.0 * max_bandwidth_hz)
+        code = dlpf_for_rate(limit)
         self.check_device_id()
         write = self.bus.write_byte_data
         try:
             write(self.address, PWR_MGM, H_RESET)
             write(self.address, PWR_MGM, CLK_PLL_X)
-            write(self.address, DLPF_FS, FS_SEL_2000 | dlpf_for_rate(rate_hz))
+            write(self.address, DLPF_FS, FS_SEL_2000 | code)
             write(self.address, SMPLRT_DIV, divider)
             write(self.address, INT_CFG, 0x00)
             read_back = self.bus.read_byte_data(self.address, DLPF_FS)
@@ -120,6 +123,8 @@ class Itg3205:
             raise DeviceError(f'{self._where()}: DLPF_FS read back 0x{read_back:02X}: the full '
                               'scale did not take (bus problem?)')
         self.rate_hz = 1000.0 / (divider + 1)
+        self.bandwidth_hz = DLPF_BANDWIDTHS_HZ[code]
+        self.delay_s = DLPF_DELAY_S[code]
 
     def data_ready(self) -> bool:
         """Return whether a new sample is ready (INT_STATUS.RAW_DATA_RDY)."""

@@ -6,10 +6,11 @@ chip does (:mod:`accelcal_ros.driver.itg3205`): WHO_AM_I, SMPLRT_DIV, DLPF_FS, I
 INT_STATUS (RAW_DATA_RDY, cleared by a data read), TEMP_OUT and GYRO_*OUT (big-endian
 int16, 14.375 LSB per deg/s, clipped at +-32767), PWR_MGM (H_RESET restores the
 defaults). The rate comes from ``rate_of(t)`` (true angular velocity, rad/s, at the
-simulated time ``t`` s) plus a bias, a scale error and white noise (the datasheet's
-0.38 deg/s rms), drawn from a seeded generator, at the configured sample rate on an
-injectable clock. :attr:`who_am_i` can be changed to imitate another chip,
-:meth:`fail_next` injects I/O errors (``OSError`` with ``EIO``).
+simulated time ``t`` s) delayed by the configured low-pass's group delay, plus a bias, a
+scale error and white noise (the datasheet's 0.38 deg/s rms at 100 Hz bandwidth,
+scaled by the square root of the configured bandwidth), drawn from a seeded generator,
+at the configured sample rate on an injectable clock. :attr:`who_am_i` can be changed
+to imitate another chip, :meth:`fail_next` injects I/O errors (``OSError`` with ``EIO``).
 """
 import errno
 import math
@@ -72,8 +73,13 @@ class SimulatedItg3205Bus:
             return False
         self._last_sample = index
         t = index / self._sample_rate()
-        rate = np.asarray(self.rate_of(t), dtype=float) * self.scale + self.bias \
-            + self._rng.standard_normal(3) * self.noise_rad_s
+        # the low-pass (DLPF_CFG): its group delay, and the noise of its bandwidth (the
+        # datasheet's rms is at 100 Hz)
+        code = self.registers[reg.DLPF_FS] & 0x07
+        code = code if code in reg.DLPF_DELAY_S else 0
+        noise = self.noise_rad_s * math.sqrt(min(reg.DLPF_BANDWIDTHS_HZ[code], 256.0) / 100.0)
+        rate = np.asarray(self.rate_of(t - reg.DLPF_DELAY_S[code]), dtype=float) \
+            * self.scale + self.bias + self._rng.standard_normal(3) * noise
         counts = np.clip(np.round(np.degrees(rate) * reg.LSB_PER_DEG_S), -32768, 32767)
         temp = int(round((self.temperature_c - 35.0) * 280.0 - 13200))
         self._latest = (temp, int(counts[0]), int(counts[1]), int(counts[2]))

@@ -101,15 +101,15 @@ class ImuDriverNode(Node):
         imu, truth = self._imu, self._truth
         imu.header.frame_id = truth.header.frame_id = self.params['frame_id']
         stamp, a = imu.header.stamp, imu.linear_acceleration
-        if self.gyro is not None:   # the ITG-3205's newest sample for the whole batch
-            rate = self.gyro.read()
+        rates = None
+        if self.gyro is not None:   # one stamped ITG-3205 read per poll, interpolated
             cov = imu.angular_velocity_covariance
-            if rate is None:
+            if self.gyro.read_stamped() is None:
                 cov[0] = -1.0
             else:
-                w = imu.angular_velocity
-                w.x, w.y, w.z = rate
+                rates = self.gyro.rates_at(batch.stamps.tolist())
                 cov[0] = cov[4] = cov[8] = self.gyro.variance
+        w = imu.angular_velocity
         publish = self.imu_pub.publish
         accel = (batch.samples_g * STANDARD_GRAVITY_M_S2).tolist()
         stamps_ns = (batch.stamps * 1e9).astype(np.int64).tolist()
@@ -118,6 +118,8 @@ class ImuDriverNode(Node):
         for k, total_ns in enumerate(stamps_ns):
             stamp.sec, stamp.nanosec = divmod(total_ns, 1_000_000_000)
             a.x, a.y, a.z = accel[k]
+            if rates is not None:
+                w.x, w.y, w.z = rates[k]
             publish(imu)
             if with_truth:
                 truth.header.stamp = stamp

@@ -20,9 +20,15 @@ a sum of sinusoids 8-25 Hz, ``vibration_g`` rms on z and a third of it on x and 
 0.5 deg/s rms on the gyro.
 
 **Sensors.** Accelerometer: the ADXL345 datasheet noise at ``rate_hz``, quantised to
-3.9 mg (calibrated: identity model). Gyro (ITG-3205-like): noise 0.38 deg/s rms at
-100 Hz (scaling with the square root of the rate), scale error +-1 %, a bias of about
-0.5 deg/s per axis that drifts by ``bias_drift_deg_s`` over the stop. Odometry: 50 Hz,
+3.9 mg (calibrated: identity model). Gyro (ITG-3205-like): scale error +-1 %, a bias of
+about 0.5 deg/s per axis that drifts by ``bias_drift_deg_s`` over the stop, and, with
+``gy85`` (default), as ``imu_driver`` publishes the GY-85's: the chip samples at 1 kHz
+through its low-pass (first order at the DLPF bandwidth the driver sets below half its
+poll rate, :func:`gy85_poll_s`: 20 Hz at 100 Hz, 188 Hz at 800 Hz), adds 0.38 deg/s
+rms of noise per 100 Hz of bandwidth (square root), is quantised to 1/14.375 deg/s,
+read once per poll, and interpolated at each sample's stamp
+(:mod:`accelcal_ros.sensor.gyro_sampling`); without it, white noise of 0.38 deg/s rms
+at 100 Hz per sample (scaling with the square root of the rate). Odometry: 50 Hz,
 speed noise 0.02 m/s, yaw-rate noise 0.003 rad/s.
 """
 from dataclasses import dataclass
@@ -106,10 +112,51 @@ def _rotation(roll, pitch, yaw):
     return Rotation.from_euler('ZYX', np.stack([yaw, pitch, roll], axis=1)).as_matrix()
 
 
+def gy85_poll_s(rate_hz: float) -> float:
+    """
+    Return how often ``imu_driver`` polls the ADXL345 (and so reads the ITG-3205; s).
+
+    The driver drains the FIFO every two samples, every 2.5 to 20 ms
+    (:func:`accelcal_ros.driver.bus_timing.fifo_poll_period_s`, the same figures).
+    """
+    return min(max(2.0 / rate_hz, 0.0025), 0.02)
+
+
+def _gy85_gyro(t: np.ndarray, signal: np.ndarray, rate_hz: float,
+               rng: np.random.Generator, noise_scale: float) -> np.ndarray:
+    """Return the gyro as ``imu_driver`` publishes it (see :func:`simulate_drive`)."""
+    from accelcal_ros.sensor.gyro_sampling import (DLPF_BANDWIDTHS_HZ, DLPF_DELAY_S,
+                                                   dlpf_for_rate, rates_at)
+    from scipy.signal import lfilter
+
+    poll = gy85_poll_s(rate_hz)
+    code = dlpf_for_rate(min(1000.0, 1.0 / poll))
+    bandwidth = DLPF_BANDWIDTHS_HZ[code]
+    chip_t = np.arange(0.0, t[-1] + poll, 1e-3)   # the chip samples at 1 kHz
+    fine = np.stack([np.interp(chip_t, t, signal[:, k]) for k in range(3)], axis=1)
+    a = 1.0 - math.exp(-2 * math.pi * bandwidth * 1e-3)   # its low-pass, first order
+    fine = lfilter([a], [1.0, a - 1.0], fine, axis=0, zi=(1.0 - a) * fine[:1])[0]
+    reads_t = np.arange(poll, t[-1] + 2 * poll, poll)
+    newest = np.floor(reads_t * 1000.0 + 1e-9).astype(int)
+    reads = fine[np.minimum(newest, chip_t.size - 1)] + rng.standard_normal(
+        (reads_t.size, 3)) * GYRO_NOISE_100HZ_RAD_S * math.sqrt(bandwidth / 100.0) * noise_scale
+    lsb = math.radians(1.0 / 14.375)
+    reads = np.round(reads / lsb) * lsb
+    stamped = [(float(r - DLPF_DELAY_S[code]), *row) for r, row in
+               zip(reads_t.tolist(), reads.tolist())]
+    out = np.empty_like(signal)
+    poll_of = np.searchsorted(reads_t, t - 1e-9)   # each sample goes out with the next read
+    for k in np.unique(poll_of).tolist():
+        rows = np.flatnonzero(poll_of == k)
+        out[rows] = rates_at(stamped[max(0, k - 1):k + 1], t[rows].tolist(),
+                             DLPF_DELAY_S[code], 1e-3)
+    return out
+
+
 def simulate_drive(rate_hz: float = 100.0, seed: int = 0,
                    lever_arm_m: Sequence[float] = (1.0, 0.3, 0.8),
                    vibration_g: float = 0.03, bias_drift_deg_s: float = 0.2,
-                   noise_scale: float = 1.0) -> Drive:
+                   noise_scale: float = 1.0, gy85: bool = True) -> Drive:
     """Return a :class:`Drive` sampled at ``rate_hz`` (see the module docstring)."""
     if not (rate_hz > 0 and vibration_g >= 0 and noise_scale >= 0):
         raise InputError('rate_hz must be positive, vibration_g and noise_scale >= 0')
@@ -168,8 +215,9 @@ def simulate_drive(rate_hz: float = 100.0, seed: int = 0,
         + np.radians(bias_drift_deg_s) * drift[:, None] * np.array([1.0, -1.0, 0.5])
     scale = 1.0 + rng.uniform(-0.01, 0.01, 3)
     gyro_noise = GYRO_NOISE_100HZ_RAD_S * math.sqrt(rate_hz / 100.0) * noise_scale
-    gyro = (body_rate + gyro_vib * moving[:, None]) * scale + bias \
-        + rng.standard_normal(body_rate.shape) * gyro_noise
+    white = rng.standard_normal(body_rate.shape) * gyro_noise   # drawn either way (seeds)
+    gyro = (body_rate + gyro_vib * moving[:, None]) * scale + bias
+    gyro = _gy85_gyro(t, gyro, rate_hz, rng, noise_scale) if gy85 else gyro + white
     odo_t = np.arange(0.0, duration, 1.0 / ODOMETRY_RATE_HZ)
     odo_speed = np.maximum(np.interp(odo_t, t, speed)
                            + rng.standard_normal(odo_t.size) * 0.02 * noise_scale, 0.0)

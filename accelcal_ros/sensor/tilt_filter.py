@@ -49,29 +49,33 @@ mast on a ship) a steady turn looks still, so the variance gains
 **Gyro-aided (complementary filter on the gravity direction).** With angular velocity
 ``w`` the filter keeps ``u``, the unit "up" direction in the body frame, propagated by
 ``du/dt = u x (w - b)`` and pulled towards ``f / |f|`` with the gain
-``k = 1 - exp(-dt / gyro_time_constant_s)``: the vector form of imu_tools'
-complementary filter and of Mahony's proportional term; yaw stays unobserved. The gain is
-acceleration-aware (x-io Fusion's acceleration rejection): the innovation
-``f / |f| - u``, low-passed over 0.1 s, larger than ``rejection_deg`` (or ``| |f| - 1 |``
-above ``accel_threshold_g``) means the platform accelerates, and the accelerometer is
-ignored (gyro only) for at most ``rejection_timeout_s`` (20 s), after which it is trusted
-again; when the detector says still for 3 s (1 s when odometry says stopped) while it is
-ignored, the estimate has drifted during a long manoeuvre and the accelerometer is
-trusted at once (time constant 0.5 s). The gyro bias ``b`` is learnt while the detector
-says still (gyro criteria included once a bias is known, with a mean rate below
-0.01 rad/s), the accelerometer agrees with the gyro within 0.5 deg (a steady pull-away
-over a changing grade looks still) and odometry, when given, says stopped: 20 ms block
-means of ``w``, committed only once a still window has passed them (the start of a
-motion never enters), averaged with a memory of ``bias_time_constant_s``. Until the
-first 0.2 s of stillness have given a bias the output is the accelerometer-only
-estimate. While the detector says still and the accelerometer agrees, the direction is
-the still average's (the gyro's noise would only add a random walk at rest). Variance:
-per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
-``s_w`` and bias uncertainty ``s_b``, which grows by ``gyro_bias_drift_rad_s2`` per
-second away from stillness), then ``P = (1 - k)^2 P + k^2 R`` with ``R`` the
-accelerometer's angle variance, plus the squared low-passed innovation while the
-accelerometer is used (what an undetected acceleration below the rejection threshold
-may add).
+``k = 1 - exp(-dt / gyro_time_constant_s)`` (imu_tools' complementary filter, Mahony's
+proportional term, plus his integral term on ``b``); yaw stays unobserved. Acceleration
+rejection per axis (x-io Fusion rejects all axes): the innovation ``f / |f| - u``,
+low-passed over 0.1 s, beyond ``rejection_deg`` on body x (braking, pulling) or y (a
+turn's centripetal acceleration) stops the pull on that axis only (the other is pulled
+towards ``f / g_scale``); in a turn (rate about up beyond 9 deg/s, no odometry) a lever
+arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |`` above
+``accel_threshold_g`` stops both. Rejected for ``rejection_timeout_s``, or still for 3 s
+(1 s when odometry says stopped), the accelerometer is trusted again. **Vertical aid**
+while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates
+horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt at rest as
+the mean force along ``u``); its excess along the estimate measures the error along the
+horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`),
+which the filter corrects with that time constant, and its integral term too. The gyro
+bias ``b`` is learnt while the detector says still (with a mean corrected rate below
+0.01 rad/s once a bias is known), the accelerometer agrees within 0.5 deg and odometry,
+when given, says stopped: :class:`~accelcal_ros.sensor.gyro_bias.GyroBiasEstimator`
+(20 ms blocks a still window has passed; a line with a drift prior of
+``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``). Until 0.2 s of stillness
+have given a bias the output is the accelerometer-only estimate. At rest the direction
+is the Kalman update of the propagated one with each sample (the gyro keeps a growing
+average aligned), then the still average weighed by the two variances (the still
+average wins within a second; its line through the few samples after a stop does not).
+Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``,
+bias uncertainty ``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from
+stillness), then ``P = (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle
+variance), plus the squared low-passed innovation while the accelerometer is used.
 
 Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``) are not used:
 the previous good rate is kept for up to 0.1 s, after which the filter falls back to the
@@ -79,11 +83,11 @@ accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them by reason.
 
 Cost: plain floats per sample (no numpy), as :class:`TiltEstimator`.
 """
-from collections import deque
 import math
-from typing import Deque, Dict, Optional, Sequence, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
+from accelcal_ros.sensor.gyro_bias import GyroBiasEstimator, horizontal_error
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
@@ -96,9 +100,21 @@ INNOVATION_TIME_CONSTANT_S = 0.1
 BIAS_MIN_BLOCKS = 10
 """20 ms blocks of stillness needed before the gyro bias is known (0.2 s)."""
 MAX_GAP_S = 0.5
-BIAS_INTEGRAL_TIME_CONSTANT_S = 20.0
-"""Moving, accelerometer trusted: the bias follows the innovation with this time constant."""
 """A larger gap between samples restarts the gyro state (s)."""
+BIAS_INTEGRAL_TIME_CONSTANT_S = 5.0
+"""Moving, accelerometer trusted: the integral term's time constant, in units of the
+proportional one (``ki = dt / (this * tau^2)``)."""
+G_SCALE_TIME_CONSTANT_S = 60.0
+"""Memory of the specific force along "up" at rest (the 1 g the vertical aid expects)."""
+VERTICAL_AID_MIN_G = 0.03
+"""Horizontal acceleration below which the vertical aid tells nothing (g)."""
+VERTICAL_AID_FULL_G = 0.2
+"""Horizontal acceleration from which the vertical aid has its full gain (g); below, the
+gain falls with its square (the information it carries against vibration and noise)."""
+TURN_RATE_RAD_S = 0.16
+"""Rotation about "up" beyond this (9 deg/s) is a turn: a sensor 2 m from the rotation
+axis then feels 0.005 g of centripetal acceleration on any axis (0.3 deg), so the
+accelerometer is trusted on no axis (odometry, when given, removes it)."""
 BIAS_RATE_LIMIT_RAD_S = 0.01
 """Stillness with a known bias: the mean corrected rate below this (0.57 deg/s). The
 detector's default (0.05 rad/s) lets a vehicle cruising over a changing grade (0.5 deg/s
@@ -181,14 +197,14 @@ class AttitudeFilter:
         self._p = 0.0
         self._innovation = (0.0, 0.0, 0.0)
         self._reject_since: Optional[float] = None
+        if not hasattr(self, '_g_scale'):
+            self._g_scale = 1.0
+            self._g_scale_n = 0
         self._gyro_last: Optional[Tuple[float, float, float, float]] = None
-        if not hasattr(self, '_bias'):
-            self._bias = (0.0, 0.0, 0.0)
-            self._bias_blocks = 0
-            self._bias_std = self.settings.gyro_noise_std_rad_s
-            self._bias_time = -math.inf
-        self._block: Optional[list] = None
-        self._pending: Deque[Tuple[float, float, float, float, float]] = deque()
+        if not hasattr(self, '_bias_est'):
+            self._bias_est = GyroBiasEstimator(self.settings.bias_time_constant_s,
+                                               self.settings.gyro_bias_drift_rad_s2)
+        self._bias_est.restart()
         self.mode = MODE_ACCEL
         """Which estimate the last output is (one of the ``MODE_*`` lines)."""
         self.rejecting = False
@@ -197,12 +213,12 @@ class AttitudeFilter:
     @property
     def bias_known(self) -> bool:
         """Return whether a gyro bias has been learnt in a still moment."""
-        return self._bias_blocks >= BIAS_MIN_BLOCKS
+        return self._bias_est.blocks >= BIAS_MIN_BLOCKS
 
     @property
     def gyro_bias_rad_s(self) -> Tuple[float, float, float]:
         """Return the gyro bias estimate (rad/s, body frame)."""
-        return self._bias
+        return self._bias_est.bias
 
     # -- the sample -----------------------------------------------------------------------
     def update(self, stamp: float, raw_g: Sequence[float],
@@ -246,17 +262,21 @@ class AttitudeFilter:
         detector = self.detector
         bias_known = self.bias_known
         if gyro is not None and bias_known:
-            b = self._bias
+            b = self._bias_est.bias
             detector.add(stamp, (fx, fy, fz), (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
         else:
             detector.add(stamp, (fx, fy, fz))
         still = detector.still
         if gyro is not None:   # not while the accelerometer disagrees: a steady pull
-            self._learn_bias(stamp, gyro, still and not self.rejecting
-                             and not platform_moving
-                             and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
+            est = self._bias_est
+            est.memory_s = settings.bias_time_constant_s
+            est.drift_rad_s2 = settings.gyro_bias_drift_rad_s2
+            est.feed(stamp, gyro, detector.thresholds,
+                     still and not self.rejecting and not platform_moving
+                     and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
         # the fast and the still averages (always: the fallback and the still output)
-        a_fast = low_pass_gain(dt, settings.moving_time_constant_s)
+        a_fast = low_pass_gain(dt, settings.odometry_time_constant_s if aided_by_odometry
+                               else settings.moving_time_constant_s)
         fast = self._fast
         self._fast_n += 1
         if fast is None:
@@ -325,42 +345,6 @@ class AttitudeFilter:
             return last[1], last[2], last[3]
         return None
 
-    def _learn_bias(self, stamp: float, gyro: Tuple[float, float, float], still: bool) -> None:
-        """Average 20 ms gyro blocks; commit those a still window has passed."""
-        block = self._block
-        block_s = self.detector.thresholds.block_s
-        if block is None or stamp >= block[0] + block_s or stamp < block[0]:
-            if block is not None and block[4] > 0:
-                n = block[4]
-                self._pending.append((block[0], block[5], block[1] / n, block[2] / n,
-                                      block[3] / n))
-            block = self._block = [stamp, 0.0, 0.0, 0.0, 0, stamp]
-            pending = self._pending
-            if not still:
-                pending.clear()
-            else:
-                limit = stamp - self.detector.thresholds.window_s
-                while pending and pending[0][1] < limit:
-                    self._commit_bias(pending.popleft())
-        block[1] += gyro[0]
-        block[2] += gyro[1]
-        block[3] += gyro[2]
-        block[4] += 1
-        block[5] = stamp
-
-    def _commit_bias(self, item: Tuple[float, float, float, float, float]) -> None:
-        t_start, t_end, gx, gy, gz = item
-        self._bias_blocks += 1
-        beta = max(1.0 / self._bias_blocks,
-                   low_pass_gain(max(t_end - t_start, self.detector.thresholds.block_s),
-                                 self.settings.bias_time_constant_s))
-        b = self._bias
-        self._bias = (b[0] + beta * (gx - b[0]), b[1] + beta * (gy - b[1]),
-                      b[2] + beta * (gz - b[2]))
-        self._bias_std = self.settings.gyro_noise_std_rad_s * math.sqrt(
-            beta / (2.0 - beta) / max(1.0, (t_end - t_start) * 100.0))
-        self._bias_time = t_end
-
     def _still_average(self, fast, dema, force, stamp, dt, shrink_dema):
         """
         Return (average, variance ratio) while still, restarting on a jump.
@@ -403,7 +387,8 @@ class AttitudeFilter:
             ty[1] += t * fy
             ty[2] += t * fz
             den = n * sums[2] - sums[1] * sums[1]
-            if n < 8 or den <= 1e-18:
+            shrink = (4.0 * n - 2.0) / (n * (n + 1.0))
+            if n < 8 or den <= 1e-18 or shrink >= shrink_dema:   # the moving one is better
                 return dema, shrink_dema
             mean_t = sums[1] / n
             level, slope = [], []
@@ -413,7 +398,6 @@ class AttitudeFilter:
                 level.append(sums[3 + k] / n + m * (t - mean_t))
             out = (level[0], level[1], level[2])
             state[0] = out
-            shrink = (4.0 * n - 2.0) / (n * (n + 1.0))
             if a > 0.0 and 1.0 / n < a:   # the line spans the time constant: go on as 2S - S2
                 d = [m * dt * (1.0 - a) / a for m in slope]
                 state[1] = 'holt'
@@ -470,6 +454,17 @@ class AttitudeFilter:
         return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
                             accelerating, magnitude)
 
+    def _vertical_aid(self, dt, fx, fy, fz, vx, vy, vz):
+        """Return ``v`` corrected along the horizontal acceleration (horizontal_error)."""
+        tau = self.settings.vertical_aid_time_constant_s
+        found = horizontal_error(fx, fy, fz, vx, vy, vz, self._g_scale, VERTICAL_AID_MIN_G,
+                                 VERTICAL_AID_FULL_G)
+        if found is None:
+            return vx, vy, vz
+        ex, ey, ez, weight = found
+        k = low_pass_gain(dt, tau) * weight
+        return vx + k * ex, vy + k * ey, vz + k * ez
+
     def _gyro_update(self, stamp, dt, gyro, force, magnitude, accelerating,
                      aided_by_odometry, out, shrink, platform_moving, still):
         """Run the complementary filter on the up direction; return its estimate."""
@@ -479,6 +474,8 @@ class AttitudeFilter:
         ux, uy, uz = fx * inv, fy * inv, fz * inv
         cov = self.tilt.force_covariance_list_g2
         r_var = (cov[0] + cov[4] + cov[8]) / 3.0
+        if aided_by_odometry:   # what the odometry's acceleration may be off by
+            r_var += settings.odometry_accel_std_g ** 2
         up = self._up
         if up is None:   # (re)start from the accelerometer's current average
             sx, sy, sz = out
@@ -489,21 +486,28 @@ class AttitudeFilter:
             self._innovation = (0.0, 0.0, 0.0)
             self._reject_since = None
         else:
-            b = self._bias
+            b = self._bias_est.bias
             wx, wy, wz = gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]
             vx, vy, vz = up
             vx, vy, vz = (vx + dt * (vy * wz - vz * wy), vy + dt * (vz * wx - vx * wz),
                           vz + dt * (vx * wy - vy * wx))
+            propagated = (vx, vy, vz)
             ex, ey, ez = ux - vx, uy - vy, uz - vz
             a_inn = low_pass_gain(dt, INNOVATION_TIME_CONSTANT_S)
             ix, iy, iz = self._innovation
             ix, iy, iz = ix + a_inn * (ex - ix), iy + a_inn * (ey - iy), iz + a_inn * (ez - iz)
             self._innovation = (ix, iy, iz)
-            innovation = math.sqrt(ix * ix + iy * iy + iz * iz)
-            reject = (accelerating and self.tilt.calibrated) \
-                or innovation > math.radians(settings.rejection_deg)
+            limit = math.radians(settings.rejection_deg)
+            # per axis: a turn's centripetal acceleration lies along body y (roll), braking
+            # and pulling along body x (pitch); the other axis still sees gravity alone
+            # turning (rate about up): the lever arm's centripetal acceleration reaches
+            # both axes; a straight pull or braking leaves body y (roll) to gravity
+            turning = not aided_by_odometry and abs(wx * vx + wy * vy + wz * vz) > TURN_RATE_RAD_S
+            reject_x = turning or abs(ix) > limit
+            reject_y = turning or abs(iy) > limit
+            reject = (accelerating and self.tilt.calibrated) or (reject_x and reject_y)
             k_fast = 0.0
-            if reject:
+            if reject or reject_x or reject_y:
                 since = self._reject_since
                 if since is None:
                     self._reject_since = since = stamp
@@ -511,7 +515,8 @@ class AttitudeFilter:
                     else STILL_RECOVERY_UNAIDED_S
                 if stamp - since > settings.rejection_timeout_s or (
                         self.detector.still and stamp - since > still_for):
-                    reject = False   # trusted again: fast while still (stopped after a drift)
+                    # trusted again: fast while still (stopped after a drift)
+                    reject = reject_x = reject_y = False
                     k_fast = low_pass_gain(dt, STILL_RECOVERY_TIME_CONSTANT_S) \
                         if self.detector.still else 0.0
             else:
@@ -519,23 +524,61 @@ class AttitudeFilter:
             self._up_n += 1
             k = 0.0 if reject else max(low_pass_gain(dt, settings.gyro_time_constant_s), k_fast,
                                        1.0 / self._up_n if self._up_n < 100 else 0.0)
+            kx = 0.0 if reject_x else k
+            ky = 0.0 if reject_y else k
+            if kx != ky:
+                # one axis rejected: the trusted one against the specific force over the
+                # magnitude at rest (|f| grows with the rejected axis's acceleration)
+                scale = 1.0 / self._g_scale
+                ex, ey = fx * scale - vx, fy * scale - vy
+            elif k > 0.0 and still:
+                self._g_scale_n += 1
+                # the force along "up", not |f|: the noise across it biases |f| upwards
+                # (by 0.0004 g at 800 Hz)
+                self._g_scale += max(1.0 / self._g_scale_n,
+                                     low_pass_gain(dt, G_SCALE_TIME_CONSTANT_S)) * (
+                    fx * vx + fy * vy + fz * vz - self._g_scale)
             if k > 0.0 and not still and self._up_n >= 100:
                 # Mahony's integral term: a steady innovation is a bias error
                 ki = dt / (BIAS_INTEGRAL_TIME_CONSTANT_S * settings.gyro_time_constant_s)
-                cx, cy, cz = iy * vz - iz * vy, iz * vx - ix * vz, ix * vy - iy * vx
-                b = self._bias
-                self._bias = (b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz)
-            vx, vy, vz = vx + k * ex, vy + k * ey, vz + k * ez
+                jx = 0.0 if reject_x else ix
+                jy = 0.0 if reject_y else iy
+                jz = iz if kx == ky else 0.0
+                cx, cy, cz = jy * vz - jz * vy, jz * vx - jx * vz, jx * vy - jy * vx
+                b = self._bias_est.bias
+                self._bias_est.adjust((b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz))
+            if kx == ky:
+                vx, vy, vz = vx + k * ex, vy + k * ey, vz + k * ez
+            else:
+                vx, vy = vx + kx * ex, vy + ky * ey
+            k = min(kx, ky)
+            reject = reject or reject_x or reject_y
+            if reject and settings.vertical_aid_time_constant_s > 0.0:
+                vx, vy, vz = self._vertical_aid(dt, fx, fy, fz, vx, vy, vz)
+            est = self._bias_est
+            drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - est.time)
+            s_b = math.sqrt(est.variance) + drift
             if still and not reject:
-                # at rest the still average is the best estimate (the gyro's noise would
-                # only add a random walk): the direction is taken from it
-                vx, vy, vz = out
-                self._p = r_var * shrink
+                # at rest the accelerometer is unbiased: a Kalman gain on the propagated
+                # direction (a growing average that the gyro keeps aligned), then the
+                # still average once its variance is the smaller (its line through the
+                # few samples just after a stop is not)
+                vx, vy, vz = propagated
+                s = math.sqrt(self._p + (settings.gyro_noise_std_rad_s * dt) ** 2) + s_b * dt
+                p_pred = s * s
+                kk = p_pred / (p_pred + r_var) if p_pred + r_var > 0.0 else 1.0
+                vx, vy, vz = vx + kk * (ux - vx), vy + kk * (uy - vy), vz + kk * (uz - vz)
+                p_now = (1.0 - kk) * p_pred
+                r_still = r_var * shrink
+                kb = p_now / (p_now + r_still) if p_now + r_still > 0.0 else 1.0
+                sx, sy, sz = out
+                inv = 1.0 / math.sqrt(sx * sx + sy * sy + sz * sz)
+                vx, vy, vz = (vx + kb * (sx * inv - vx), vy + kb * (sy * inv - vy),
+                              vz + kb * (sz * inv - vz))
+                self._p = (1.0 - kb) * p_now
                 k = 1.0
             norm = math.sqrt(vx * vx + vy * vy + vz * vz)
             self._up = (vx / norm, vy / norm, vz / norm)
-            drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - self._bias_time)
-            s_b = self._bias_std + drift
             if k < 1.0:
                 s = math.sqrt(self._p + (settings.gyro_noise_std_rad_s * dt) ** 2) + s_b * dt
                 self._p = (1.0 - k) ** 2 * s * s + k * k * r_var

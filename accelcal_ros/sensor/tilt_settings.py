@@ -26,23 +26,31 @@ class FilterSettings:
     """Innovation beyond which the accelerometer is ignored (the platform accelerates; deg)."""
     rejection_timeout_s: float = 20.0
     """Longest time the accelerometer is ignored before it is trusted again (s)."""
-    bias_time_constant_s: float = 0.5
-    """Memory of the gyro bias estimate while still (s)."""
+    bias_time_constant_s: float = 30.0
+    """Memory of the gyro bias estimate within one still period (s; its line fit)."""
     gyro_noise_std_rad_s: float = 0.0066
     """Gyro noise per sample (rad/s; ITG-3205: 0.38 deg/s rms)."""
-    gyro_bias_drift_rad_s2: float = 2.0e-4
-    """Growth of the gyro bias uncertainty away from stillness (rad/s per s)."""
+    gyro_bias_drift_rad_s2: float = 7.0e-4
+    """Drift of the gyro bias (rad/s per s: 0.04 deg/s^2, a warm-up): the prior of the bias
+    line's slope while still and the growth of its uncertainty away from stillness."""
     gyro_saturation_rad_s: float = 34.9
     """A rate at or beyond this on an axis is saturated (rad/s; ITG-3205: 2000 deg/s)."""
     platform_accel_g: float = 0.0
     """Steady acceleration the platform may have (g; 0: the rig does not ride a vehicle)."""
     odometry_accel_std_g: float = 0.02
     """Uncertainty of the platform acceleration derived from odometry (g)."""
+    odometry_time_constant_s: float = 0.5
+    """The low-pass while moving when odometry removes the platform's acceleration (s):
+    what is left is vibration and odometry noise (0.04 s would pass 0.3 deg of it), and
+    the double low-pass does not lag behind the body's steady roll in a turn."""
+    vertical_aid_time_constant_s: float = 3.0
+    """While the accelerometer is rejected, the pull along the horizontal acceleration from
+    the specific force's vertical component staying 1 g (s; 0: off; a vehicle)."""
 
     def check(self) -> None:
         """Raise InputError naming the first setting out of its range."""
         zero_ok = ('platform_accel_g', 'gyro_bias_drift_rad_s2', 'odometry_accel_std_g',
-                   'gyro_noise_std_rad_s')
+                   'gyro_noise_std_rad_s', 'vertical_aid_time_constant_s')
         for item in fields(self):
             value = getattr(self, item.name)
             ok = isinstance(value, (int, float)) and math.isfinite(value) and (
