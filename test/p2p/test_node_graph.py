@@ -123,7 +123,7 @@ def test_p2p_node_publishes_poses_from_rendered_images(graph):
     counts = [int(kv.value) for m in diag.snapshot()[0] for s in m.status
               for kv in s.values if kv.key == 'attitudes_rejected']
     assert max(counts) >= 3
-    assert 'is not finite (rejected so far: 1)' in proc.output()  # logged, throttled
+    assert 'is not finite (attitudes dropped so far: 1;' in proc.output()  # throttled
     wait_for_reason(diag, 'no pixel above threshold', probe,
                     ((np.zeros_like(image), roll, pitch), {}))
     assert proc.proc.poll() is None
