@@ -94,7 +94,7 @@ def _diag_values(diagnostics, timeout=10.0, want=None):
         arrays, _ = diagnostics.snapshot()
         for array in reversed(arrays):
             for status in array.status:
-                if status.name.startswith('attitude'):
+                if status.name == 'attitude: tilt':
                     values = {kv.key: kv.value for kv in status.values}
                     message = status.message
                     if want is None or want(values, message):

@@ -62,7 +62,7 @@ class CompressedProbe:
 def _p2p_values(diag):
     for msg in reversed(diag.snapshot()[0]):
         for status in msg.status:
-            if status.name.startswith('p2p'):
+            if status.name == 'p2p: P2P positioning':
                 return {kv.key: kv.value for kv in status.values}, status
     return {}, None
 
