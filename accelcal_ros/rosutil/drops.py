@@ -14,7 +14,9 @@ It is the one home of a node's drop accounting: a pure core that counts its own 
 callback or as a difference of its counter (``drop(kind, reason, n)``), and a node's
 older diagnostics keys (``skipped_nan``, ``rejected_frames``, ...) are read from
 :meth:`DropCounter.count`. The kinds of every node are listed in its documentation
-(docs/*.md, "Dropped messages").
+(docs/*.md, "Dropped messages"). ``imu_driver``, ``calibration_frames`` and the scanner
+simulation subscribe to nothing and have no message to drop (the driver's samples lost
+in the sensor's FIFO are its ``fifo_overruns``).
 """
 import math
 import threading

@@ -25,7 +25,7 @@ def _publish(graph, pub, raw_g, stamp):
     pub.publish(msg)
 
 
-def _latest_for(collector, stamp, timeout=5.0):
+def _latest_for(collector, stamp, timeout=30.0):
     from accelcal_ros.rosutil.stamps import stamp_to_seconds
 
     deadline = time.monotonic() + timeout

@@ -42,7 +42,7 @@ def test_cloud_assembler_warns_without_boresight_and_reports_write_failures(grap
     folder.write_text('a file where the folder was')
     reply = graph.call(Trigger, 'cloud_assembler/save', timeout=20.0)
     assert not reply.success and reply.message.startswith('cannot write')
-    deadline = time.monotonic() + 10.0
+    deadline = time.monotonic() + 30.0
     while '[ERROR]' not in proc.output() and time.monotonic() < deadline:
         time.sleep(0.1)
     assert any('[ERROR]' in line and 'cannot write' in line
