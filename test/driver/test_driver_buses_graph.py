@@ -83,8 +83,8 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate, read
     imu.clear()
     t0 = time.monotonic()
     t_end, end = wait_values(diag, lambda v: int(v['samples_published'])
-                         >= int(start['samples_published']) + window_s * rate
-                         and time.monotonic() - t0 > window_s, 60.0)
+                             >= int(start['samples_published']) + window_s * rate
+                             and time.monotonic() - t0 > window_s, 60.0)
     msgs, _ = imu.snapshot()
 
     def delta(key):

@@ -26,7 +26,7 @@ TIMEOUT_S = 60.0
 
 
 def _dropped(diag, node):
-    """The newest ``<node>: dropped messages`` values seen on /diagnostics (dict)."""
+    """Return the newest ``<node>: dropped messages`` values seen on /diagnostics."""
     values = {}
     for msg in diag.snapshot()[0]:
         for status in msg.status:
@@ -58,7 +58,7 @@ def _burst(proc, diag, node, kind, send, fragment, count=BURST):
 
 
 def _alive(graph, node, name):
-    """The node still answers (its executor is not stuck): a parameter read."""
+    """Check that the node still answers (its executor is not stuck): a parameter read."""
     assert graph.get_parameters(node, [name], timeout=30.0)
 
 
@@ -77,7 +77,7 @@ def _imu(ax, ay, az, stamp_s=None):
 
 
 def test_attitude_counts_nan_samples_and_goes_on(graph):
-    """NaN samples: kind imu_nan (and skipped_nan of ``attitude: tilt``); then a tilt."""
+    """Samples with NaN: kind imu_nan (and skipped_nan of ``attitude: tilt``); then a tilt."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.qos import qos_profile_sensor_data
