@@ -20,7 +20,8 @@ second sensor_msgs/Imu, the newest sample within 50 ms used; its frame must be t
 accelerometer's unless ``gyro_rotation`` says how they relate), odometry-aided with
 ``odometry_topic`` (nav_msgs/Odometry; ``lever_arm_m``). ``time_constant_s`` > 0 selects
 the former fixed low-pass instead (accelerometer only). Bad gyro or odometry input is
-not used and is said once, with the reason, and counted in ``/diagnostics``, whose
+not used, counted in ``/diagnostics`` and logged (throttled), with the reason; the
+``attitude: tilt`` status's
 ``mode`` says what the tilt rests on (accelerometer only on a moving platform: WARN,
 valid only while the platform does not accelerate).
 
@@ -34,7 +35,11 @@ loads the file when it appears (or uses a calibration pushed in the meantime).
 Impossible input (NaN/infinite, a zero vector, a magnitude beyond any accelerometer such
 as 1e300) publishes nothing: it is skipped, counted per reason in ``/diagnostics``
 (``attitude: tilt``, once a second, with samples in and out) and logged at most every
-10 s. Per sample the callback only assigns plain floats into pre-built messages.
+10 s. Every dropped message goes through one
+:class:`~accelcal_ros.rosutil.drops.DropCounter` (status ``attitude: dropped messages``;
+kinds ``imu_nan``, ``imu_zero``, ``imu_out_of_range``, ``gyro_nan``, ``gyro_saturated``,
+``gyro_frame``, ``odometry``; docs/attitude.md). Per sample the callback only assigns
+plain floats into pre-built messages.
 Core: :class:`~accelcal_ros.sensor.tilt.TiltEstimator`.
 """
 import math
@@ -42,6 +47,7 @@ import os
 
 from accelcal_ros.attitude.params import ATTITUDE_PARAMS
 from accelcal_ros.errors import AccelcalError, InputError
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
@@ -64,6 +70,8 @@ DIAGNOSTICS_PERIOD_S = 1.0
 """Period of the /diagnostics status and of the check for a missing calibration file (s)."""
 GYRO_MATCH_S = 0.05
 """A gyro sample from ``gyro_topic`` is used for accelerometer samples this close (s)."""
+SKIP_KINDS = {'NaN': 'imu_nan', 'zero': 'imu_zero', 'out of range': 'imu_out_of_range'}
+"""Drop kind of each reason :class:`TiltEstimator` gives for an impossible sample."""
 FILTER_KEYS = ('still_time_constant_s', 'moving_time_constant_s', 'gyro_time_constant_s',
                'rejection_deg', 'rejection_timeout_s', 'bias_time_constant_s',
                'gyro_noise_std_rad_s', 'platform_accel_g')
@@ -88,7 +96,6 @@ class AttitudeNode(Node):
         self._gyro_frame_reason = ''
         self._odometry = None
         self._odometry_moving = None
-        self._input_problems = {}
         self._accel_frame = None
         self._gyro_seen = {'NaN': 0, 'saturated': 0}
         self._pending = {}
@@ -98,7 +105,7 @@ class AttitudeNode(Node):
         self._fixed_noise = bool(values['noise_std_g'])
         self._received = 0
         self._published = 0
-        self._skipped = {'NaN': 0, 'zero': 0, 'out of range': 0}
+        self.drops = DropCounter(self, DIAGNOSTICS_PERIOD_S)
         self._calibration_source = 'calibration.* parameters'
         self._waiting_for_file = ''
         self._set_calibration(*self._model_from_values(values))
@@ -233,11 +240,8 @@ class AttitudeNode(Node):
         self.filter.set_noise(noise)
 
     def _problem(self, key, text):
-        """Count a bad gyro/odometry input; say it once per kind."""
-        count = self._input_problems.get(key, 0)
-        self._input_problems[key] = count + 1
-        if not count:
-            self.get_logger().warning(f'{text} (said once; counted in /diagnostics)')
+        """Count a bad gyro/odometry input (kind ``key``); logged at most every 10 s."""
+        self.drops.drop(key, text)
 
     # -- samples ----------------------------------------------------------------------------
     def _update_noise(self, stamp):
@@ -285,12 +289,7 @@ class AttitudeNode(Node):
             self._skip(estimator.last_rejection)
             return
         if gyro is not None and estimator.gyro_rejections != self._gyro_seen:
-            self._gyro_seen = dict(estimator.gyro_rejections)
-            self.get_logger().warning(
-                'gyro samples not used (NaN, or at the '
-                f'{self.filter.settings.gyro_saturation_rad_s} rad/s limit): {self._gyro_seen}; '
-                'a short gap is bridged with the last good rate, a longer one falls back to '
-                'the accelerometer', throttle_duration_sec=10.0)
+            self._gyro_dropped(estimator.gyro_rejections)
         att = self._out_att
         att.header = header
         att.vector.x, att.vector.y = est.roll, est.pitch
@@ -361,12 +360,21 @@ class AttitudeNode(Node):
             return
         self._odometry_moving = abs(twist.linear.x) > 0.05 or abs(twist.angular.z) > 0.01
 
+    def _gyro_dropped(self, rejections):
+        """Count the gyro samples the filter did not use (NaN, saturated) since the last."""
+        seen, self._gyro_seen = self._gyro_seen, dict(rejections)
+        limit = self.filter.settings.gyro_saturation_rad_s
+        for key, kind, why in (('NaN', 'gyro_nan', 'NaN'),
+                               ('saturated', 'gyro_saturated', f'at the {limit} rad/s limit')):
+            self.drops.drop(kind, f'gyro sample not used ({why}): a short gap is bridged with '
+                            'the last good rate, a longer one falls back to the accelerometer',
+                            rejections.get(key, 0) - seen.get(key, 0))
+
     def _skip(self, reason):
-        """Count an impossible sample and say so, at most every 10 s."""
-        self._skipped[reason] = self._skipped.get(reason, 0) + 1
-        self.get_logger().warning(
-            f'imu/data_raw sample skipped ({reason}: a reading with no usable direction); '
-            f'skipped so far: {self._skipped}', throttle_duration_sec=10.0)
+        """Count an impossible sample and say so, at most every 10 s per reason."""
+        self.drops.drop(SKIP_KINDS.get(reason, 'imu_out_of_range'),
+                        f'imu/data_raw sample skipped ({reason}: a reading with no usable '
+                        'direction)')
 
     def _on_timer(self):
         path = self._waiting_for_file
@@ -382,7 +390,9 @@ class AttitudeNode(Node):
     def _publish_diagnostics(self):
         status = DiagnosticStatus(name=f'{self.get_name()}: tilt',
                                   hardware_id='accelerometer')
-        skipped = sum(self._skipped.values())
+        drops = self.drops
+        skipped = sum(drops.count(kind) for kind in SKIP_KINDS.values())
+        problems = {k: drops.count(k) for k in ('gyro_frame', 'odometry') if drops.count(k)}
         if self._waiting_for_file:
             status.level = DiagnosticStatus.WARN
             status.message = (f'uncalibrated: waiting for {self._waiting_for_file}')
@@ -393,19 +403,19 @@ class AttitudeNode(Node):
             status.message = f'{skipped} impossible samples skipped'
         elif self._gyro_frame_reason:
             status.level, status.message = DiagnosticStatus.WARN, self._gyro_frame_reason
-        elif self._input_problems:
+        elif problems:
             status.level = DiagnosticStatus.WARN
             status.message = 'bad gyro/odometry input: ' + ', '.join(
-                f'{k} {v}' for k, v in sorted(self._input_problems.items()))
+                f'{k} {v}' for k, v in sorted(problems.items()))
         elif self.estimator is self.filter and self.filter.mode == MODE_BLIND:
             status.level, status.message = DiagnosticStatus.WARN, MODE_BLIND
         else:
             status.level, status.message = DiagnosticStatus.OK, 'publishing'
         values = {'samples_received': str(self._received),
                   'samples_published': str(self._published),
-                  'skipped_nan': str(self._skipped.get('NaN', 0)),
-                  'skipped_zero': str(self._skipped.get('zero', 0)),
-                  'skipped_out_of_range': str(self._skipped.get('out of range', 0)),
+                  'skipped_nan': str(drops.count('imu_nan')),
+                  'skipped_zero': str(drops.count('imu_zero')),
+                  'skipped_out_of_range': str(drops.count('imu_out_of_range')),
                   'calibrated': str(self.estimator.calibrated).lower(),
                   'calibration_source': self._calibration_source,
                   'mode': 'fixed low-pass (time_constant_s), accelerometer only'
@@ -418,7 +428,7 @@ class AttitudeNode(Node):
             values['accelerometer_rejected'] = str(f.rejecting).lower()
             values['gyro_nan'] = str(f.gyro_rejections['NaN'])
             values['gyro_saturated'] = str(f.gyro_rejections['saturated'])
-        for key, count in self._input_problems.items():
+        for key, count in problems.items():
             values[f'bad_{key}'] = str(count)
         if self._rate_dt:
             values['rate_hz_measured'] = f'{1.0 / self._rate_dt:.2f}'

@@ -19,6 +19,11 @@ The session settings (``model``, ``auto_capture``, the still detector's threshol
 ``min_positions``, ...) are read at ``calibration/start``: a change takes effect at the
 next session. ``status_period_s`` takes effect at once.
 
+Samples that cannot be used (NaN/infinite, or saturated: beyond ``saturation_g``) are
+counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter` (``/diagnostics`` status
+``calibration: dropped messages``, kinds ``imu_nan`` and ``imu_saturated``) and logged at
+most every 10 s; samples outside a session are not read (not a drop).
+
 ``finish`` applies the new calibration to the running attitude node through its standard
 ``<attitude_node>/set_parameters`` service (asynchronously: the executor never blocks).
 """
@@ -28,6 +33,7 @@ from accelcal_ros.calibration.params import CALIBRATION_PARAMS, calibrator_confi
 from accelcal_ros.calibration.session import Calibrator
 from accelcal_ros.errors import AccelcalError, FileWriteError
 from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
@@ -53,6 +59,8 @@ class CalibrationNode(Node):
         self.last_result = None
         self.saved_path = ''
         self._apply_clients = {}
+        self.drops = DropCounter(self)
+        self._rejected_seen = (0, 0)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
         # markers first: the interface publishes the first status (and with it markers)
         marker_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -81,10 +89,26 @@ class CalibrationNode(Node):
         g = STANDARD_GRAVITY_M_S2
         events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
                                             (a.x / g, a.y / g, a.z / g))
+        detector = self.calibrator.detector
+        rejected = (detector.rejected_nan, detector.rejected_saturated)
+        if rejected != self._rejected_seen:
+            self._count_rejected(rejected)
         for event in events:
-            self.session.event(event, 'warning' if event.startswith('rejected') else 'info')
+            if event.startswith('rejected'):
+                continue   # counted and logged (throttled) by the DropCounter
+            self.session.event(event)
             if event.startswith('captured'):
                 self.get_logger().info(self.calibrator.progress().text())
+
+    def _count_rejected(self, rejected):
+        """Count the samples the still detector rejected since the last call."""
+        seen, self._rejected_seen = self._rejected_seen, rejected
+        new = [r - s if r >= s else r for r, s in zip(rejected, seen)]  # a new session: 0
+        saturation = self.calibrator.config.saturation_g
+        self.drops.drop('imu_nan', 'imu/data_raw sample with NaN or infinity not used',
+                        new[0])
+        self.drops.drop('imu_saturated', 'imu/data_raw sample saturated (beyond '
+                        f'{saturation:g} g on an axis) not used', new[1])
 
     # -- the session (backend of CalibrationInterface) -------------------------------------
     def begin(self):

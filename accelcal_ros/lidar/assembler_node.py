@@ -16,6 +16,13 @@ Frames and equation: :mod:`accelcal_ros.lidar.georef`. With ``map_crs`` the odom
 in that projected CRS (UTM): points go out in the ``map`` frame anchored at
 ``map_origin`` (logged) and ``save`` writes .laz/.las with the CRS
 (:mod:`accelcal_ros.lidar.map_output`).
+
+Dropped input, counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter`
+(``cloud_assembler: dropped messages``) and logged at most every 10 s per kind:
+``scans`` (no x/y/z or time field, a bad layout, or no odometry yet) and ``odometry``
+(NaN, a quaternion of norm != 1, a stamp not after the previous one). Points of a scan
+outside the odometry's time span are dropped, never extrapolated (said once, counted
+in the scan totals).
 """
 import threading
 import time
@@ -131,7 +138,7 @@ class CloudAssemblerNode(Node):
             if msg.header.frame_id:
                 self._nav_frame = msg.header.frame_id
         if reason:
-            self._warn_once('odom', f'{reason} (further rejections are counted, not logged)')
+            self._drops.drop('odometry', f'odometry rejected: {reason}')
 
     def _on_cloud(self, msg):
         try:

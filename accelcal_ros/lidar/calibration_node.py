@@ -17,6 +17,14 @@ time the rig rests (:mod:`accelcal_ros.lidar.capture`), or on
 ``/diagnostics``. The stillness settings take effect at the next start. After finish,
 ``imu_frame`` -> ``lidar_frame`` (the boresight and ``lever_arm_m``) is published on
 ``/tf_static`` as ``calibration_frames`` does.
+
+Dropped input, counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter`
+(``lidar_calibration: dropped messages``) and logged at most every 10 s per kind:
+``imu_samples`` (NaN/infinite), ``imu_samples_out_of_order`` (a stamp not after the
+previous one), ``clouds`` (a PointCloud2 without x/y/z or with a bad layout) and
+``clouds_overflow`` (scans waiting for the IMU stream beyond ``max_pending_scans``,
+oldest first). Messages outside a session are not read (not a drop); a scan taken while
+the rig moves is not used by design (not a drop either).
 """
 import os
 import threading
@@ -106,12 +114,14 @@ class LidarCalibrationNode(Node):
         with self._lock:
             if self._capture is None:
                 return
+            before = self._capture.out_of_order
             still = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel, gyro)
             new = self._new_positions()
-            backwards = self._capture.out_of_order
+            backwards = self._capture.out_of_order - before
         if backwards:
-            self._warn_once('imu_order', 'IMU stamps went backwards; such samples are ignored '
-                            '(two publishers on imu/data_raw, or a clock jump?)')
+            self._drops.drop('imu_samples_out_of_order', 'IMU stamp not after the previous '
+                             'one: sample ignored (two publishers on imu/data_raw, or a clock '
+                             'jump?)', backwards)
         if still != self._was_still:
             self._was_still = still
             self.get_logger().info('rig at rest' if still else 'rig moving')
@@ -130,8 +140,14 @@ class LidarCalibrationNode(Node):
         with self._lock:
             if self._capture is None:
                 return
+            before = self._capture.scans_overflowed
             self._capture.add_cloud(stamp_to_seconds(msg.header.stamp), pts)
             new = self._new_positions()
+            overflowed = self._capture.scans_overflowed - before
+        if overflowed:
+            self._drops.drop('clouds_overflow', 'scans waiting for the IMU stream beyond '
+                             'max_pending_scans: the oldest dropped (is imu/data_raw '
+                             'arriving?)', overflowed)
         for pos in new:
             self._log_capture(pos)
 

@@ -113,6 +113,7 @@ class StaticCapture:
         self._pending: List[Tuple[float, np.ndarray]] = []
         self.positions: List[StaticPosition] = []
         self.out_of_order = 0
+        self.scans_overflowed = 0
         self._segment_start_s = -np.inf
         self._still_end_s = None
 
@@ -226,7 +227,9 @@ class StaticCapture:
         """Add a scan; returns the :class:`StaticPosition` it completed (auto mode), else None."""
         self._pending.append((float(t), np.asarray(points, dtype=float).reshape(-1, 3)))
         limit = max(self.settings.max_pending_scans, 2 * self.settings.clouds_per_capture)
-        del self._pending[:-limit]
+        if len(self._pending) > limit:   # counted: the node reports them as dropped
+            self.scans_overflowed += len(self._pending) - limit
+            del self._pending[:-limit]
         return self._drain()
 
     def _period_at(self, t):

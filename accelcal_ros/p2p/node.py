@@ -21,7 +21,13 @@ optical axis about the object's vertical, rad; x = y = 0, as ``attitude`` carrie
 and pitch in x and y;
 :func:`accelcal_ros.p2p.solver.yaw_from_rotation`), ``pose_candidates``
 (geometry_msgs/PoseArray: every valid solution, also when ambiguous) and
-``/diagnostics`` (the reason when there is no pose, detection quality). The logic is
+``/diagnostics`` (the reason when there is no pose, detection quality). Every dropped
+input is counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter` (``p2p: dropped
+messages``) and logged at most every 10 s per kind: ``images`` (unsupported encoding,
+bad buffer), ``images_undecodable``, ``images_replaced`` (a compressed frame replaced
+by a newer one before it was decoded), ``images_size`` (not camera_info's size),
+``images_no_attitude`` (no attitude within ``attitude_tolerance_s``), ``attitudes`` (not
+finite, or outside roll +-pi, pitch +-pi/2) and ``camera_info`` (unusable K/D). The logic is
 :class:`accelcal_ros.p2p.pipeline.P2PPipeline`; parameters:
 :data:`accelcal_ros.p2p.params.P2P_PARAMS`.
 """
@@ -33,6 +39,7 @@ from accelcal_ros.p2p.params import P2P_PARAMS
 from accelcal_ros.p2p.pipeline import P2PPipeline
 from accelcal_ros.rosutil.dds import use_large_message_profile
 from accelcal_ros.rosutil.diagnostics import PeriodicTimer
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
 from accelcal_ros.rosutil.images import convert_color, image_array, parse_image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
@@ -70,6 +77,7 @@ class P2PNode(Node):
         self.yaw_pub = self.create_publisher(Vector3Stamped, 'yaw', 10)
         self.candidates_pub = self.create_publisher(PoseArray, 'pose_candidates', 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.drops = DropCounter(self)
         qos = qos_profile_sensor_data
         image_qos = qos if self.params['image_qos'] == 'sensor_data' else QoSProfile(
             depth=2, reliability=ReliabilityPolicy.RELIABLE)
@@ -80,6 +88,9 @@ class P2PNode(Node):
                 self, [compressed_topic(self, 'image')], image_qos,
                 lambda i, raw, grey, enc: self._on_decoded(raw, grey, enc),
                 lambda i, reason: self._on_undecodable(reason),
+                on_replaced=lambda i: self.drops.drop(
+                    'images_replaced', 'a compressed frame replaced by a newer one before '
+                    'it was decoded (decoding falls behind; the newest frame is kept)'),
                 events=lambda i: SubscriptionEventCallbacks(
                     incompatible_qos=self._incompatible))
         else:
@@ -129,7 +140,8 @@ class P2PNode(Node):
             reason = self.pipeline.set_camera_info(msg.k, msg.d, msg.distortion_model,
                                                    msg.width, msg.height)
         if reason:
-            self._note(reason)
+            self.drops.drop('camera_info', f'camera_info rejected: {reason}')
+            self._note(reason, log=False)
         else:
             self.get_logger().info(f'camera_info: {msg.width}x{msg.height}, fx {msg.k[0]:.1f}, '
                                    f'D {msg.distortion_model or "none"} '
@@ -142,9 +154,7 @@ class P2PNode(Node):
                                                      msg.vector.x, msg.vector.y)
         except InputError as exc:  # not an attitude (pitch 4 rad, roll 1e300): counted
             self._counts['attitudes_rejected'] += 1
-            self.get_logger().warning(f'{exc} (rejected so far: '
-                                      f'{self._counts["attitudes_rejected"]})',
-                                      throttle_duration_sec=10.0)
+            self.drops.drop('attitudes', f'attitude rejected: {exc}')
             self._note('attitude rejected: not finite or outside roll +-pi, pitch +-pi/2 '
                        '(counted in attitudes_rejected)', log=False)
             return
@@ -170,7 +180,8 @@ class P2PNode(Node):
                                topic=self._topic('image'))
         except InputError as exc:
             self._counts['no_pose'] += 1
-            self._note(f'image rejected: {exc}')
+            self.drops.drop('images', f'image rejected: {exc}')
+            self._note(f'image rejected: {exc}', log=False)
             return
         self._process(raw, grey)
 
@@ -184,9 +195,7 @@ class P2PNode(Node):
         self._counts['images'] += 1
         self._counts['undecodable_frames'] += 1
         self._last_reason = f'frame skipped: {reason}'
-        self.get_logger().warning(f'frame skipped: {reason} '
-                                  f'({self._counts["undecodable_frames"]} so far)',
-                                  throttle_duration_sec=10.0)
+        self.drops.drop('images_undecodable', f'frame skipped: {reason}')
 
     def _process(self, raw, grey):
         """Run the pipeline on a grey image of ``raw``'s stamp and frame; publish."""
@@ -198,7 +207,8 @@ class P2PNode(Node):
                                                   tag=header)
             except AccelcalError as exc:
                 self._counts['no_pose'] += 1
-                self._note(f'image rejected: {exc}')
+                self.drops.drop('images', f'image rejected: {exc}')
+                self._note(f'image rejected: {exc}', log=False)
                 return
         for result in results:
             self._publish(result)
@@ -213,7 +223,9 @@ class P2PNode(Node):
             self.candidates_pub.publish(array)
         if result.solution is None:
             self._counts['no_pose'] += 1
-            self._note(result.reason)
+            if result.dropped:
+                self.drops.drop(result.dropped, f'image dropped: {result.reason}')
+            self._note(result.reason, log=not result.dropped)
             return
         self._counts['poses'] += 1
         if result.resolved_by_continuity:

@@ -33,7 +33,10 @@ class FrameResult:
     ``solution`` (a :class:`~accelcal_ros.p2p.solver.P2PSolution`) or ``None`` with
     ``reason``; ``candidates``: every valid solution; ``detection``: the
     :class:`~accelcal_ros.p2p.beacons.BeaconDetection` (None if not run); ``tag``: what
-    the caller passed with the image (the node passes the image header).
+    the caller passed with the image (the node passes the image header); ``dropped``:
+    the kind of a dropped image ('' when the image was used, even with no pose): an
+    image no camera_info fits (``images_size``), one without an attitude near its stamp
+    (``images_no_attitude``).
     """
 
     stamp_s: float
@@ -45,6 +48,7 @@ class FrameResult:
     attitude: Optional[Tuple[float, float]] = None
     resolved_by_continuity: bool = False
     tag: Any = None
+    dropped: str = ''
 
 
 class P2PPipeline:
@@ -139,6 +143,7 @@ class P2PPipeline:
         if cam.width and cam.height and grey.shape[:2] != (cam.height, cam.width):
             result.reason = (f'image {grey.shape[1]}x{grey.shape[0]} does not match '
                              f'camera_info {cam.width}x{cam.height}')
+            result.dropped = 'images_size'
             return result
         latest = self.attitudes.latest_stamp()
         attitude = self._matched(stamp_s)
@@ -151,6 +156,7 @@ class P2PPipeline:
                                  f's of the image stamp (nearest {nearest - stamp_s:+.3f} s '
                                  f'away): attitude messages dropped, or the camera and IMU '
                                  f'clocks differ')
+                result.dropped = 'images_no_attitude'
             return result
         result.attitude = attitude
         if not np.all(np.isfinite(attitude)):

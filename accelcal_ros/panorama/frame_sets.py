@@ -22,6 +22,12 @@ returns the next :class:`FrameSet` to stitch, or ``None``:
   so; without it one future stamp would stop the stitching for good. A smaller backward
   jump heals by itself once the stamps pass the last set's (within the threshold).
 
+Dropped input: a rejected frame (kind ``<camera>_frames``), a refused attitude
+(``attitudes``) and a set skipped for want of an attitude near its stamp (``frame_sets``)
+are counted; with ``on_drop(kind, reason, detail=cause)`` (the node's DropCounter) each
+is handed on and the policy logs nothing of its own about them; without it each is said
+once.
+
 Times: stamps in seconds of the message clock; ``now_s`` in seconds of a monotonic wall
 clock (``time.monotonic``). :class:`FrameSetWorker` owns the one thread that polls the
 policy and hands the sets on. Thread-safe: frames and attitudes may be added from any
@@ -83,13 +89,20 @@ class FrameSetPolicy:
     The frame-set policy; ``settings[key]`` for every key of :data:`SETTINGS` (seconds).
 
     ``labels``: one name per camera used in log lines (e.g. ``"cam0 (cam0/image_raw)"``);
-    ``log(level, text)`` with level ``'info'`` or ``'warning'``.
+    ``log(level, text)`` with level ``'info'`` or ``'warning'``; ``on_drop(kind, reason,
+    detail=...)`` receives every dropped input (see the module; ``detail``: the cause, for
+    a log throttle of its own); ``names``: the cameras' short names for
+    the kinds (default: the labels).
     """
 
     def __init__(self, labels: Sequence[str], settings: Mapping[str, float],
                  log: Callable[[str, str], None] = _no_log, depth: int = 4,
-                 jump_threshold_s: float = JUMP_THRESHOLD_S):
+                 jump_threshold_s: float = JUMP_THRESHOLD_S,
+                 on_drop: Optional[Callable[..., Any]] = None,
+                 names: Optional[Sequence[str]] = None):
         self.labels = list(labels)
+        self.names = list(names) if names is not None else list(self.labels)
+        self.on_drop = on_drop
         self.settings = settings
         self.log = log
         self.jump_threshold_s = float(jump_threshold_s)
@@ -125,6 +138,13 @@ class FrameSetPolicy:
         if key not in self._warned:
             self._warned.add(key)
             self.log('warning', text)
+
+    def _dropped(self, kind: str, key: Any, text: str) -> None:
+        """Hand a dropped input to ``on_drop``, or say it once (``key``)."""
+        if self.on_drop is not None:
+            self.on_drop(kind, text, detail=str(key))
+        else:
+            self._warn_once(key, f'{text} (reported once)')
 
     def _check_jump(self, stream: Any, label: str, stamp_s: float, now_s: float) -> None:
         """Reset everything when ``stream`` jumps in time (caller holds the lock)."""
@@ -168,9 +188,8 @@ class FrameSetPolicy:
         with self._lock:
             self._rejected[index] += 1
             self._reject_reason[index] = reason
-        self._warn_once(('image', index, reason),
-                        f'camera {self.labels[index]}: frame rejected: {reason} '
-                        '(reported once)')
+        self._dropped(f'{self.names[index]}_frames', ('image', index, reason),
+                      f'camera {self.labels[index]}: frame rejected: {reason}')
 
     def add_attitude(self, stamp_s: float, roll_rad: float, pitch_rad: float,
                      now_s: float) -> bool:
@@ -179,9 +198,9 @@ class FrameSetPolicy:
         if problem:
             with self._lock:
                 self.rejected_attitudes += 1
-            self._warn_once('bad_attitude', f'attitude rejected: {problem}; the last good '
-                            'attitude stays in use (reported once, counted in /diagnostics '
-                            'as rejected_attitudes)')
+            self._dropped('attitudes', 'bad_attitude', f'attitude rejected: {problem}; the '
+                          'last good attitude stays in use (counted in /diagnostics as '
+                          'rejected_attitudes)')
             return False
         with self._lock:
             self._check_jump('attitude', 'attitude', stamp_s, now_s)
@@ -285,9 +304,9 @@ class FrameSetPolicy:
         attitude = self._attitudes.interpolated('attitude', newest, tolerance_att)
         if attitude is None:
             self.status = 'no attitude near the frame stamps'
-            self._warn_once('attitude_gap', f'no attitude within {tolerance_att} s of the '
-                            f'frame stamp {newest:.3f}: frames skipped (check clocks / the '
-                            'attitude node; reported once)')
+            self._dropped('frame_sets', 'attitude_gap', f'no attitude within {tolerance_att} '
+                          f's of the frame stamp {newest:.3f}: frames skipped (check clocks / '
+                          'the attitude node)')
             self._last_tried = newest
             return None
         self._last_published = newest

@@ -5,7 +5,7 @@ Subscribes:
 
 * each of ``camera_topics`` (sensor_msgs/Image in any encoding of
   :mod:`accelcal_ros.rosutil.images`: bgr8, rgb8, mono8/16, rgba8/bgra8, Bayer, YUV 4:2:2;
-  images whose size differs from the rig file are rejected with a log line, once). QoS
+  images whose size differs from the rig file are rejected, counted, logged: see below). QoS
   ``image_reliability``: ``reliable`` (default) keep-last ``image_queue_depth``: every
   frame of a reliable camera driver arrives whole, and a slow node only drops older
   frames (keep-last: the publisher never waits for it); ``best_effort`` for best-effort
@@ -32,6 +32,13 @@ for the attitude, time jumps) is :class:`~.frame_sets.FrameSetPolicy`; its one t
 the next set's lookup is rebuilt. A stamp that jumps by more than
 ``time_jump_threshold_s`` against the wall time (a bag replayed in a loop, a clock set)
 resets the policy, with a log line and the count in ``/diagnostics``.
+Every dropped input -- a frame of the wrong size or encoding or that does not decode
+(``<camera>_frames``), a compressed frame replaced by a newer one before it was decoded
+(``<camera>_frames_replaced``), a refused attitude (``attitudes``), a set skipped for
+want of an attitude near its stamp (``frame_sets``), a refused ``roi/<name>/steer``
+(``roi_steer``) and a frame set the levelled views' thread had no time for
+(``roi_frame_sets``) -- is counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter`
+(``stitcher: dropped messages``) and logged at most every 10 s per kind.
 ``imu_to_camera`` comes from the rig file when it has one; the parameter, when given,
 overrides it.
 """
@@ -48,6 +55,7 @@ from accelcal_ros.panorama.pipeline import PipelinedStitcher
 from accelcal_ros.panorama.projection import PanoramaGeometry
 from accelcal_ros.panorama.roi_node import RoiViews
 from accelcal_ros.rosutil.dds import large_message_profile_path, use_large_message_profile
+from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.image_input import compressed_topic, CompressedInputs
 from accelcal_ros.rosutil.images import (convert_color, image_array, image_cdr,
                                          parse_image_cdr)
@@ -79,7 +87,8 @@ class StitcherNode(Node):
 
         self._cv2 = cv2
         self.params = ParameterSet(self, STITCHER_PARAMS)
-        self.roi = RoiViews(self)  # levelled views roi/<name>: their parameters
+        self.drops = DropCounter(self)
+        self.roi = RoiViews(self, self.drops)  # levelled views roi/<name>: their parameters
         v = self.params.values
         if v['threads']:
             cv2.setNumThreads(int(v['threads']))
@@ -117,7 +126,8 @@ class StitcherNode(Node):
         self._sizes = [(c.width, c.height) for c in self.rig.cameras]
         self.policy = FrameSetPolicy(
             [f'{c.name} ({t})' for c, t in zip(self.rig.cameras, topics)], self.params,
-            log=self._log, jump_threshold_s=v['time_jump_threshold_s'])
+            log=self._log, jump_threshold_s=v['time_jump_threshold_s'],
+            on_drop=self.drops.drop, names=self.rig.names)
         self._published = 0
         self._publish_times = []
         self._latency_s = float('nan')
@@ -140,6 +150,7 @@ class StitcherNode(Node):
             self.inputs = CompressedInputs(
                 self, topics, qos, self._on_decoded, self.policy.reject_frame,
                 expected_sizes=self._sizes, callback_group=group,
+                on_replaced=self._replaced,
                 events=lambda i: SubscriptionEventCallbacks(
                     incompatible_qos=lambda event, i=i: self._incompatible(i, event)))
         self.create_subscription(Vector3Stamped, 'attitude', self._on_attitude,
@@ -243,6 +254,11 @@ class StitcherNode(Node):
             return
         self.policy.add_frame(index, raw.stamp_s, image, time.monotonic())
         self.worker.wake()
+
+    def _replaced(self, index):
+        self.drops.drop(f'{self.rig.names[index]}_frames_replaced',
+                        f'{self.topics[index]}: a frame replaced by a newer one before it was '
+                        'decoded (decoding falls behind; the newest frame is kept)')
 
     def _on_decoded(self, index, raw, image, encoding):
         """Queue a decoded compressed frame (decode thread), converted if needed."""

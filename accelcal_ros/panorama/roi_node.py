@@ -23,6 +23,11 @@ degrees; set it at run time to add, remove or point views):
   :mod:`.view`), for a head tracker or joystick; a bad value (NaN, fov outside
   (0, 180) deg, elevation beyond +-90 deg) is logged with the reason and the view keeps
   its last pose. A steered pose is not written back into ``roi_views``.
+
+A refused steer message (kind ``roi_steer``) and a frame set replaced by a newer one
+before the views' thread rendered it (``roi_frame_sets``: the views fall behind) are
+counted in the node's :class:`~accelcal_ros.rosutil.drops.DropCounter` and logged at most
+every 10 s.
 """
 import threading
 
@@ -42,8 +47,9 @@ VIEW_QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
 class RoiViews:
     """The views of one node: parameters, publishers, steering and the render thread."""
 
-    def __init__(self, node):
+    def __init__(self, node, drops):
         self.node = node
+        self.drops = drops
         self.views = None
         self._io = {}  # name -> (image publisher, info publisher, steer subscription)
         self._pending = None
@@ -115,8 +121,8 @@ class RoiViews:
         try:
             self.views.set_pose(name, ViewPose(v.x, v.y, v.z))
         except InputError as exc:
-            self.node.get_logger().warning(f'roi/{name}/steer rejected: {exc}',
-                                           throttle_duration_sec=1.0)
+            self.drops.drop('roi_steer', f'roi/{name}/steer rejected: {exc}; the view keeps '
+                            'its last pose')
 
     # -- frames ---------------------------------------------------------------------------
     def submit(self, frame_set):
@@ -124,8 +130,12 @@ class RoiViews:
         if not self._io and self.server is None:
             return
         with self._cond:
+            replaced = self._pending is not None
             self._pending = frame_set
             self._cond.notify()
+        if replaced:
+            self.drops.drop('roi_frame_sets', 'levelled views: a frame set replaced by a '
+                            'newer one before it was rendered (the views fall behind)')
 
     def close(self):
         """Stop the render thread."""

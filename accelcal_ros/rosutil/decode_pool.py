@@ -9,8 +9,9 @@ parallel), with two rules a camera stream needs:
 * **per key in order**: jobs of one key (a camera) run one after the other, in the order
   submitted, so frames of a camera never overtake each other;
 * **newest only**: while a key's job runs, only its newest waiting job is kept; an older
-  waiting one is dropped (counted in :attr:`DecodePool.replaced`), as a keep-last queue of
-  depth 1 does. A slow decoder costs frames, never a growing queue or latency.
+  waiting one is dropped (counted in :attr:`DecodePool.replaced` and handed to
+  ``on_replace(key)``, outside the pool's lock), as a keep-last queue of depth 1 does.
+  A slow decoder costs frames, never a growing queue or latency.
 
 A job that raises goes to ``on_error(key, exc)``; the pool goes on. Pure Python (no
 rclpy): used by :mod:`accelcal_ros.rosutil.image_input` for the stitcher and ``p2p`` and
@@ -32,10 +33,12 @@ class DecodePool:
 
     def __init__(self, workers: int, name: str = 'decode',
                  on_error: Callable[[Hashable, BaseException], None] = _no_error,
-                 timing_window: int = 100):
+                 timing_window: int = 100,
+                 on_replace: Optional[Callable[[Hashable], Any]] = None):
         self._executor = ThreadPoolExecutor(max_workers=max(1, int(workers)),
                                             thread_name_prefix=name)
         self._on_error = on_error
+        self._on_replace = on_replace
         self._lock = threading.Lock()
         self._waiting: Dict[Hashable, Tuple[Callable[..., Any], tuple]] = {}
         self._running: Set[Hashable] = set()
@@ -51,13 +54,17 @@ class DecodePool:
         with self._lock:
             if self._closed:
                 return
-            if key in self._waiting:
+            replaced = key in self._waiting
+            if replaced:
                 self.replaced += 1
             self._waiting[key] = (func, args)
-            if key in self._running:
-                return
-            self._running.add(key)
-        self._executor.submit(self._drain, key)
+            start = key not in self._running
+            if start:
+                self._running.add(key)
+        if replaced and self._on_replace is not None:
+            self._on_replace(key)
+        if start:
+            self._executor.submit(self._drain, key)
 
     def _drain(self, key: Hashable) -> None:
         while True:

@@ -12,7 +12,9 @@ parallel; per camera in order, the newest frame only when decoding falls behind)
 The node's ``on_frame(index, raw, array, encoding)`` and ``on_reject(index, reason)``
 run in the pool's threads: a frame that does not decode
 (:func:`~.compressed.decode_compressed` says why in one line) is counted in
-:attr:`CompressedInputs.rejected` and handed to ``on_reject``; nothing waits for it.
+:attr:`CompressedInputs.rejected` and handed to ``on_reject``; nothing waits for it. A
+frame replaced by a newer one before it was decoded goes to ``on_replaced(index)`` (the
+executor's thread), for the node's DropCounter.
 """
 from collections import deque
 import threading
@@ -35,7 +37,7 @@ class CompressedInputs:
     """CompressedImage subscriptions of ``topics`` decoded off the executor (see module)."""
 
     def __init__(self, node, topics, qos, on_frame, on_reject, expected_sizes=None,
-                 callback_group=None, events=None):
+                 callback_group=None, events=None, on_replaced=None):
         from sensor_msgs.msg import CompressedImage
 
         self.topics = list(topics)
@@ -50,7 +52,8 @@ class CompressedInputs:
         """Messages received per topic."""
         self.rejected = [0] * count
         """Messages per topic that did not decode (or were no CompressedImage)."""
-        self.pool = DecodePool(count, 'decode', on_error=self._job_failed)
+        self.pool = DecodePool(count, 'decode', on_error=self._job_failed,
+                               on_replace=on_replaced)
         for i, topic in enumerate(self.topics):
             node.create_subscription(
                 CompressedImage, topic, lambda data, i=i: self._receive(i, data), qos,

@@ -87,14 +87,14 @@ def _imu(stamp_s, force_g, gyro=None, frame='imu_link'):
     return msg
 
 
-def _diag_values(diagnostics, timeout=10.0, want=None):
+def _diag_values(diagnostics, timeout=30.0, want=None):
     deadline = time.monotonic() + timeout
     values, message = {}, ''
     while time.monotonic() < deadline:
         arrays, _ = diagnostics.snapshot()
         for array in reversed(arrays):
             for status in array.status:
-                if status.name.startswith('attitude'):
+                if status.name == 'attitude: tilt':
                     values = {kv.key: kv.value for kv in status.values}
                     message = status.message
                     if want is None or want(values, message):
@@ -135,7 +135,7 @@ def test_attitude_node_gyro_and_odometry_inputs(graph):
         time.sleep(0.005)
     values, message = _diag_values(diagnostics, want=lambda v, m: 'moving platform' in m)
     assert 'valid only while it does not accelerate' in message, (values, message)
-    msgs = out.wait_for(10, timeout=10.0)
+    msgs = out.wait_for(10, timeout=30.0)
     assert msgs[-1].orientation_covariance[0] > math.atan(0.3) ** 2 * 0.99
 
     # angular velocity inside imu/data_raw: used, bias learnt while still
@@ -175,7 +175,7 @@ def test_attitude_node_gyro_and_odometry_inputs(graph):
         time.sleep(0.05)
     values, _ = _diag_values(diagnostics, want=lambda v, m: 'bad_odometry' in v)
     assert values.get('bad_odometry') == '1', values
-    deadline = time.monotonic() + 5.0
+    deadline = time.monotonic() + 30.0
     while 'backwards in time' not in proc.output() and time.monotonic() < deadline:
         time.sleep(0.1)
     assert 'backwards in time' in proc.output()

@@ -69,7 +69,7 @@ def test_calibrate_in_a_graph_and_attitude_follows(graph, tmp_path):
     assert not reply.success and 'no calibration session' in reply.message
 
     # The attitude node received the calibration through its parameter service.
-    deadline = time.monotonic() + 10.0
+    deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline:
         scale = graph.get_parameters('attitude', ['calibration.scale'])['calibration.scale']
         if abs(scale[0] - record.sensor_model.scale[0]) < 1e-9:
@@ -77,22 +77,30 @@ def test_calibrate_in_a_graph_and_attitude_follows(graph, tmp_path):
         time.sleep(0.2)
     assert scale[0] == pytest.approx(record.sensor_model.scale[0])
 
-    # A late joiner (ros2 topic echo --once) gets the latest status only.
+    # A late joiner (ros2 topic echo --once) gets the latest status only: once the
+    # attitude node's reply has come back (the last status the session publishes).
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    time.sleep(1.0)   # the attitude node's reply to the calibration has come back
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and not any(
+            'calibration applied to' in _status_values(m).get('last_event', '')
+            for m in status.snapshot()[0]):
+        time.sleep(0.1)
     late = graph.collect(DiagnosticStatus, 'calibration/status', QoSProfile(
         depth=10, reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    time.sleep(1.5)
+    replayed = late.wait_for(1, timeout=30.0)
+    time.sleep(1.0)   # nothing more comes: no session runs (a second one would show)
     replayed = late.snapshot()[0]
     assert len(replayed) == 1, [m.message for m in replayed]
     assert replayed[0].message.startswith('last calibration')
-    time.sleep(0.3)
     attitude.clear()
     truth.clear()
-    time.sleep(3.5)
-    after = dwell_errors_deg(attitude.snapshot()[0], truth.snapshot()[0])
+    deadline = time.monotonic() + 60.0   # at least one whole dwell, however slow
+    after = {}
+    while len(after) < 1 and time.monotonic() < deadline:
+        time.sleep(0.5)
+        after = dwell_errors_deg(attitude.snapshot()[0], truth.snapshot()[0])
     assert len(after) >= 1
     worst_after = max(np.abs(v).max() for v in after.values())
     assert worst_after < 0.15, after

@@ -30,7 +30,7 @@ def test_sim_itg3205_angular_velocity_reaches_the_attitude_node(graph):
     deadline = time.monotonic() + 30.0
     mode = values = None
     while time.monotonic() < deadline:
-        for array in reversed(diagnostics.snapshot()[0]):
+        for array in diagnostics.snapshot()[0]:   # in order: the newest status wins
             for status in array.status:
                 kv = {k.key: k.value for k in status.values}
                 if status.name.startswith('attitude') and 'mode' in kv:

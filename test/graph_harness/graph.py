@@ -86,7 +86,13 @@ class NodeProcess:
 
 
 class Graph:
-    """A probe node (own context and executor thread) plus the node processes it started."""
+    """
+    A probe node (own context and executor thread) plus the node processes it started.
+
+    The default timeouts (30 s) bound a hang, not a speed: a node's start-up (imports,
+    discovery) on a loaded 2-core machine takes seconds, and a wait ends as soon as its
+    condition holds.
+    """
 
     def __init__(self, log_dir='.', name='probe'):
         self.log_dir = log_dir
@@ -114,7 +120,7 @@ class Graph:
         """Subscribe and collect messages with their receive time: returns a Collector."""
         return Collector(self.node, msg_type, topic, qos)
 
-    def call(self, srv_type, name, request=None, timeout=10.0):
+    def call(self, srv_type, name, request=None, timeout=30.0):
         """Call a service (waiting for it to appear); returns the response."""
         client = self.node.create_client(srv_type, name)
         try:
@@ -130,7 +136,7 @@ class Graph:
         finally:
             self.node.destroy_client(client)
 
-    def set_parameters(self, node_name, values, timeout=10.0):
+    def set_parameters(self, node_name, values, timeout=30.0):
         """``ros2 param set``: returns the list of SetParametersResult."""
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
@@ -141,7 +147,7 @@ class Graph:
         return self.call(SetParameters, f'/{node_name}/set_parameters', request,
                          timeout).results
 
-    def get_parameters(self, node_name, names, timeout=10.0):
+    def get_parameters(self, node_name, names, timeout=30.0):
         """``ros2 param get``: returns {name: python value}."""
         from rcl_interfaces.srv import GetParameters
         from rclpy.parameter import parameter_value_to_python
@@ -176,7 +182,7 @@ class Collector:
             self.messages.append(msg)
             self.receive_times.append(time.time())
 
-    def wait_for(self, count, timeout=10.0):
+    def wait_for(self, count, timeout=30.0):
         """Wait until at least ``count`` messages arrived; returns a copy of them."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:

@@ -183,3 +183,12 @@ def test_manual_capture_merges_the_latest_scans_only():
     position, reason = capture.capture_now()
     assert reason == 'captured' and sorted(set(position.points[:, 0])) == [2.0, 3.0]
     assert capture.capture_now()[0] is None
+
+
+def test_scans_beyond_the_pending_limit_are_counted_as_overflowed():
+    """Without IMU samples scans wait; beyond max_pending_scans the oldest are counted."""
+    capture = StaticCapture(CaptureSettings(min_static_s=0.5, clouds_per_capture=2,
+                                            max_pending_scans=5))
+    for k in range(12):
+        capture.add_cloud(0.1 * k, np.zeros((4, 3)))
+    assert capture.scans_overflowed == 12 - 5

@@ -41,10 +41,10 @@ def test_lidar_calibration_node_captures_and_finishes(graph, tmp_path):
     assert len(data['positions']) >= 3 and len(data['R']) == 9
     assert rotation_angle_deg(load_boresight(out), truth) < 0.1, (out.read_text()
                                                                   + proc.output())
-    not_running = graph.call(Trigger, 'lidar_calibration/capture', timeout=10.0)
+    not_running = graph.call(Trigger, 'lidar_calibration/capture', timeout=30.0)
     assert not not_running.success and 'no calibration session' in not_running.message
     assert graph.call(Trigger, 'lidar_calibration/start').success
-    not_still = graph.call(Trigger, 'lidar_calibration/capture', timeout=10.0)
+    not_still = graph.call(Trigger, 'lidar_calibration/capture', timeout=30.0)
     assert not not_still.success and 'still' in not_still.message
     # the result on /tf_static, to a late joiner: the file's R and the lever arm
     tf_static = graph.collect(TFMessage, '/tf_static', qos=STATIC_TF_QOS)

@@ -62,7 +62,7 @@ class CompressedProbe:
 def _p2p_values(diag):
     for msg in reversed(diag.snapshot()[0]):
         for status in msg.status:
-            if status.name.startswith('p2p'):
+            if status.name == 'p2p: P2P positioning':
                 return {kv.key: kv.value for kv in status.values}, status
     return {}, None
 
@@ -84,7 +84,7 @@ def test_p2p_compressed_input_poses_and_bad_frames(graph):
         assert proc.proc.poll() is None, proc.output()
         probe.send(*good, roll, pitch)
         time.sleep(0.15)
-    msg = poses.wait_for(1, timeout=5.0)[-1]
+    msg = poses.wait_for(1, timeout=30.0)[-1]
     assert msg.header.frame_id == 'cam_optical'
     position = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
     assert np.linalg.norm(position - translation) < 0.01 * np.linalg.norm(translation)
@@ -96,7 +96,7 @@ def test_p2p_compressed_input_poses_and_bad_frames(graph):
     while not poses.snapshot()[0] and time.monotonic() < deadline:
         probe.send(*jpeg, roll, pitch)
         time.sleep(0.15)
-    msg = poses.wait_for(1, timeout=5.0)[-1]
+    msg = poses.wait_for(1, timeout=30.0)[-1]
     position = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
     assert np.linalg.norm(position - translation) < 0.01 * np.linalg.norm(translation)
 
@@ -115,7 +115,8 @@ def test_p2p_compressed_input_poses_and_bad_frames(graph):
     bad = [(fmt, data[:len(data) // 3]), ('16UC1; compressedDepth png', data),
            (fmt, data[:20] + bytes(200) + data[220:])]
     sent = 0
-    deadline = time.monotonic() + 30.0
+    start = time.monotonic()
+    deadline = start + 30.0
     while time.monotonic() < deadline:
         probe.send(*bad[sent % len(bad)], roll, pitch)
         sent += 1
@@ -127,10 +128,12 @@ def test_p2p_compressed_input_poses_and_bad_frames(graph):
     assert 6 <= int(values['undecodable_frames']) <= sent, values
     assert 'frame skipped' in status.message
     assert proc.proc.poll() is None, proc.output()
-    assert 1 <= proc.output().count('frame skipped:') <= 1 + sent // 10
+    # logged at most every 10 s (the DropCounter's throttle), whatever the load
+    elapsed = time.monotonic() - start
+    assert 1 <= proc.output().count('frame skipped:') <= 1 + int(elapsed // 10.0)
     poses.clear()
     deadline = time.monotonic() + 20.0
     while not poses.snapshot()[0] and time.monotonic() < deadline:
         probe.send(*good, roll, pitch)
         time.sleep(0.15)
-    assert poses.wait_for(1, timeout=5.0)
+    assert poses.wait_for(1, timeout=30.0)

@@ -207,3 +207,19 @@ def test_a_dropped_frame_costs_one_set_only():
             stamps.append(round(frame_set.stamp_s, 3))
     assert stamps == [round(10.0 + 0.1 * k, 3) for k in range(10) if k != 4]
     assert policy.time_jumps == 0 and not any(state.stalled for state in policy.cameras(101.0))
+
+
+def test_dropped_input_goes_to_on_drop_instead_of_the_log():
+    """With on_drop every drop is handed on by kind (frames per camera name); no log."""
+    drops = []
+    log = []
+    policy = FrameSetPolicy(['cam0 (a)', 'cam1 (b)'], SETTINGS,
+                            lambda level, text: log.append(text),
+                            on_drop=lambda kind, reason, detail='': drops.append(kind),
+                            names=['cam0', 'cam1'])
+    assert not policy.add_attitude(0.0, 0.0, 4.0, 1.0)
+    policy.reject_frame(1, 'bad size')
+    policy.reject_frame(1, 'bad size')
+    assert drops == ['attitudes', 'cam1_frames', 'cam1_frames']
+    assert not [t for t in log if 'rejected' in t]
+    assert policy.rejected_attitudes == 1 and policy.cameras(2.0)[1].rejected == 2

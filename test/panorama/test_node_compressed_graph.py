@@ -83,7 +83,7 @@ def test_stitcher_compressed_input_and_bad_frames(graph, tmp_path):
         assert proc.proc.poll() is None, proc.output()
         feeder.send()
         time.sleep(0.1)
-    msgs = panoramas.wait_for(3, timeout=5.0)
+    msgs = panoramas.wait_for(3, timeout=30.0)
     assert 'compressed' in proc.output() and '/cam1/image_raw/compressed' in proc.output()
     panorama = image_msg_to_array(msgs[-1])
     truth = render.render_panorama_truth(scene, geometry)
@@ -107,7 +107,8 @@ def test_stitcher_compressed_input_and_bad_frames(graph, tmp_path):
     panoramas.clear()
     bad_stamps = []
     sent_bad = 0
-    deadline = time.monotonic() + 40.0
+    start = time.monotonic()
+    deadline = start + 40.0
     while time.monotonic() < deadline:
         feeder.send()
         time.sleep(0.1)
@@ -127,9 +128,10 @@ def test_stitcher_compressed_input_and_bad_frames(graph, tmp_path):
     stamps = [stamp_to_seconds(m.header.stamp) for m in got]
     assert not any(min(abs(s - b) for b in bad_stamps) < 1e-6 for s in stamps)
     out = proc.output()
+    elapsed = time.monotonic() - start   # each cause logged once per 10 s (throttled)
     for fragment in ('JPEG cut short', 'JPEG data does not decode',
                      'PNG image is 160x120, expected 320x240', "format 'h264'"):
-        assert out.count(fragment) == 1, (fragment, out)
+        assert 1 <= out.count(fragment) <= 1 + int(elapsed // 10.0), (fragment, out)
     _, main = _camera_status(diagnostics, 'stitcher: panorama')
     keys = {kv.key: kv.value for kv in main.values}
     assert float(keys['decode_ms']) > 0.0 and 'decode_dropped' in keys

@@ -59,7 +59,7 @@ class Feeder:
         self.att.publish(msg)
 
 
-def _wait_for_log(proc, text, timeout=10.0, feed=None):
+def _wait_for_log(proc, text, timeout=30.0, feed=None):
     """Wait for ``text`` in the node's output, calling ``feed()`` every 0.1 s meanwhile."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -112,8 +112,8 @@ def test_stitcher_node_end_to_end(graph, tmp_path):
         feeder.attitude(float('nan'), 0.0)
         feeder.frames(cameras=[1], encoding='16UC1')
 
-    assert _wait_for_log(proc, 'attitude rejected', 10.0, bad_inputs), proc.output()
-    assert _wait_for_log(proc, "unsupported image encoding '16UC1'", 10.0, bad_inputs)
+    assert _wait_for_log(proc, 'attitude rejected', 30.0, bad_inputs), proc.output()
+    assert _wait_for_log(proc, "unsupported image encoding '16UC1'", 30.0, bad_inputs)
 
     def good():
         feeder.attitude(ROLL, PITCH)
@@ -138,7 +138,7 @@ def test_stitcher_node_end_to_end(graph, tmp_path):
         feeder.attitude(ROLL, PITCH)
         feeder.frames(cameras=[0, 1])
 
-    assert _wait_for_log(proc, 'cam2 (cam2/image_raw) stalled', 10.0, two_cameras)
+    assert _wait_for_log(proc, 'cam2 (cam2/image_raw) stalled', 30.0, two_cameras)
     panoramas.clear()
     msgs = _feed_until(panoramas, 2, two_cameras)
     stalled = image_msg_to_array(msgs[-1])
@@ -151,12 +151,12 @@ def test_stitcher_node_end_to_end(graph, tmp_path):
                     return status
         return None
 
-    deadline = time.monotonic() + 5.0
+    deadline = time.monotonic() + 30.0
     while stalled_status() is None and time.monotonic() < deadline:
         time.sleep(0.1)
     assert stalled_status() is not None
     # camera 2 is back (an info line after the warnings: one logger, two severities)
-    assert _wait_for_log(proc, 'cam2 (cam2/image_raw) is back', 10.0, good), proc.output()
+    assert _wait_for_log(proc, 'cam2 (cam2/image_raw) is back', 30.0, good), proc.output()
     assert 'stitching failed' not in proc.output()
     assert proc.proc.poll() is None
 
@@ -246,7 +246,7 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
     assert 'size from the rig: camera 0 f = 55.0 px' in proc.output()
     assert 'incompatible QoS' in proc.output()
     assert 'imu_to_camera from rig file' in proc.output()
-    assert compressed.wait_for(1, timeout=5.0)
+    assert compressed.wait_for(1, timeout=30.0)
     jpeg = compressed.snapshot()[0][-1]
     assert jpeg.format == 'bgr8; jpeg compressed bgr8' and bytes(jpeg.data[:2]) == b'\xff\xd8'
     for jump_s in (1000.0, -1000.0):
@@ -268,15 +268,17 @@ def test_stitcher_node_goes_on_after_time_jumps(graph, tmp_path):
                     return values
         return None
 
-    deadline = time.monotonic() + 5.0
+    deadline = time.monotonic() + 30.0
     while jumps() is None and time.monotonic() < deadline:
         feed()
         time.sleep(0.1)
     assert jumps() is not None, proc.output()
-    # the jump is -1000 s plus the wall time between the two sets the node compared (a
-    # loaded machine delays feeds by up to the feed loop's own timeout, never more)
+    # the jump is the stamps' -1000 s plus the probe's wall time between the two messages
+    # the node compared (up to the feed loop's timeout) minus the node's wall time between
+    # receiving them: it differs from the probe's by the two messages' delivery delays
+    # (a loaded machine: measured 15 ms, bounded here by the feed loop's timeout too)
     jump_s = float(jumps()['last_time_jump'].split(' s ')[0])
-    assert -1000.0 - 1e-3 <= jump_s <= -1000.0 + 25.0, jumps()['last_time_jump']
+    assert -1000.0 - 20.0 <= jump_s <= -1000.0 + 20.0, jumps()['last_time_jump']
     assert jumps()['last_error'] == 'none' and 'stitching failed' not in proc.output()
 
     # raw cameras' encodings: Bayer frames (uniform grey 60 and 160) are demosaiced

@@ -76,10 +76,16 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     assert msg.header.frame_id == 'panorama_roi_front'
     covered, psnr = _psnr_to_truth(msg, scene, ViewPose.from_degrees(10, 2, 50))
     assert covered > 0.5 and psnr > 30.0, (covered, psnr)
-    info = _feed_until(infos, 1, feed)[-1]
+
+    def same_stamp(info):   # images go on arriving: pair an info with its own image
+        stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for m in images.snapshot()[0]}
+        return (info.header.stamp.sec, info.header.stamp.nanosec) in stamps
+
+    info = _feed_until(infos, 1, feed, accept=same_stamp)[-1]
     f = 160 / math.tan(math.radians(25))
     assert np.allclose(info.k, [f, 0, 159.5, 0, f, 119.5, 0, 0, 1])
-    assert (info.width, info.height) == (320, 240) and info.header.stamp == msg.header.stamp
+    assert (info.width, info.height) == (320, 240)
+    assert info.header.frame_id == msg.header.frame_id
 
     # steering by the topic: x = azimuth, y = elevation, z = fov_h (rad)
     def steer_to(az, el, fov):
@@ -108,7 +114,7 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     m = Vector3Stamped()
     m.vector.x = float('nan')
     steer.publish(m)
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + 30
     while 'steer rejected' not in proc.output() and time.monotonic() < deadline:
         time.sleep(0.1)
     assert 'fov_h must be in' in proc.output() or 'finite' in proc.output(), proc.output()

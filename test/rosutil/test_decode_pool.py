@@ -62,3 +62,21 @@ def test_errors_go_to_the_handler_and_the_pool_goes_on():
     assert errors == [('a', 'bad 1')]
     pool.submit('a', seen.append, 3)         # closed: ignored
     assert seen == [2]
+
+
+def test_replaced_jobs_are_handed_to_on_replace():
+    """Each job replaced before it ran is counted and handed on (a node's DropCounter)."""
+    gate = threading.Event()
+    replaced = []
+    pool = DecodePool(2, on_replace=replaced.append)
+    try:
+        pool.submit('cam0', lambda: gate.wait(20.0))
+        assert _wait(lambda: not pool.idle() and pool.done == 0)
+        for _ in range(4):                   # the first waits; three replace one another
+            pool.submit('cam0', lambda: None)
+        pool.submit('cam1', lambda: None)    # another key replaces nothing
+        gate.set()
+        assert _wait(pool.idle)
+    finally:
+        pool.close()
+    assert replaced == ['cam0'] * 3 and pool.replaced == 3

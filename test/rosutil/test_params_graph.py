@@ -46,7 +46,7 @@ def _call(graph, srv_type, name, request=None):
     path is still being matched (DDS discovery, worse on a loaded machine).
     """
     try:
-        return graph.call(srv_type, name, request, timeout=10.0)
+        return graph.call(srv_type, name, request, timeout=30.0)
     except TimeoutError:
         return graph.call(srv_type, name, request, timeout=20.0)
 
@@ -116,7 +116,7 @@ def _pitch_of_level_sample(graph, pub, collector, stamp):
     msg = Imu()
     msg.header.stamp.sec = stamp
     msg.linear_acceleration.z = G
-    deadline = time.monotonic() + 10.0
+    deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline:
         pub.publish(msg)
         time.sleep(0.1)

@@ -46,8 +46,8 @@ def test_attitude_delivers_and_answers_services(graph, monkeypatch, executor):
     attitude.wait_for(50, timeout=20.0)
     for attempt in range(2):  # a first answer can be lost while the reply path matches
         try:
-            result = graph.set_parameters('attitude', {'time_constant_s': 0.5}, timeout=10.0)
-            values = graph.get_parameters('attitude', ['time_constant_s'], timeout=10.0)
+            result = graph.set_parameters('attitude', {'time_constant_s': 0.5}, timeout=30.0)
+            values = graph.get_parameters('attitude', ['time_constant_s'], timeout=30.0)
             break
         except TimeoutError:
             if attempt:
@@ -92,7 +92,7 @@ def test_fatal_start_up_error_reaches_rosout(graph):
         assert proc.wait_exit(timeout=20.0) == 1  # replay without a file
         assert 'needs replay.file' in proc.output()
         try:
-            rosout.wait_for(1, timeout=5.0)
+            rosout.wait_for(1, timeout=15.0)
             break
         except TimeoutError:
             continue
