@@ -155,6 +155,7 @@ class Adxl345Source:
         self._count_before = 0
         self._last_count = 0
         self._last_overrun_host: Optional[bool] = None
+        self._pending_lost = 0
         self._backoff = 0.0
 
     @classmethod
@@ -230,6 +231,8 @@ class Adxl345Source:
         self._backoff = 0.0
         self.stats.consecutive_errors = 0
         t_read = self.clock()
+        if self.use_fifo and self._last_read is not None:
+            self._count_loss(t_status, len(samples), overrun)
         if overrun and self._last_read is not None:
             self._last_overrun_host = self._attribute_loss(t_status, t_read, len(samples))
         else:
@@ -250,9 +253,29 @@ class Adxl345Source:
             else max(self._next_poll + self.poll_period, now)
         return Batch(stamps, samples)
 
+    def _count_loss(self, t_status, count, flagged):
+        """
+        Count the samples lost since the previous drain's FIFO_STATUS read.
+
+        Between the previous FIFO_STATUS read and this one, ``(t - t_prev) x rate``
+        samples arrived; the previous drain popped what was there then, so the FIFO should
+        now hold all arrivals: what it lacks, the overflow dropped. Only a full FIFO can
+        have lost any; the overrun flag may come a drain late (the FIFO overflowed after
+        this drain's INT_SOURCE read, while the host stalled before FIFO_STATUS), so a full
+        FIFO is judged whether or not the flag is set (unflagged: beyond one sample of
+        clock rounding). The loss waits in ``_pending_lost`` for the overrun's blame.
+        """
+        if not flagged and count < FIFO_DEPTH - 1:
+            return
+        lost = max(0, int(round((t_status - self._last_start) * self.rate_hz)) - count)
+        if not flagged and lost < 2:
+            return
+        self.lost_samples += lost
+        self._pending_lost += lost
+
     def _attribute_loss(self, t_status, t_read, count):
         """
-        Count the samples an overrun lost, and blame the host or the bus.
+        Blame the host or the bus for an overrun, with the samples it lost.
 
         INT_SOURCE (read first in each drain) reports an overflow that happened since the
         previous drain's status reads (or, when that drain found the FIFO full, since the
@@ -262,11 +285,7 @@ class Adxl345Source:
         host's own time (not scheduled, Python, system calls) let the FIFO fill up (SPI at
         5 MHz: 5 %). Consecutive overrunning drains are one event with one blame.
         """
-        # between the previous FIFO_STATUS read and this one, (t - t_prev) x rate samples
-        # arrived; the previous drain popped what was there then, so the FIFO should now
-        # hold all arrivals: what it lacks, the overflow dropped
-        lost = max(0, int(round((t_status - self._last_start) * self.rate_hz)) - count)
-        self.lost_samples += lost
+        lost, self._pending_lost = self._pending_lost, 0   # counted by _count_loss
         start, entries, drains = self._last_start, self._last_count + count, 2
         if self._last_count >= FIFO_DEPTH - 1:
             # the previous drain found the FIFO full: it overflowed after that drain's
@@ -278,7 +297,11 @@ class Adxl345Source:
                                             pops_fifo=True)
                     + drains * STATUS_READS_PER_POLL
                     * transaction_s(self.bus, self.bus_speed_hz, 1))
-        host = wire < MAX_BUS_LOAD * (t_read - start)
+        # the FIFO fills from empty in FIFO_DEPTH sample periods: a judged span shorter
+        # than that cannot hold the overflow, which then happened while the host did not
+        # run the driver (before the span: a stall between two reads of a drain)
+        span = t_read - start
+        host = span < FIFO_DEPTH / self.rate_hz or wire < MAX_BUS_LOAD * span
         if self._last_overrun_host is not None:
             # the previous drain found the FIFO overflowing too (it overflows again between
             # its INT_SOURCE read and its first pop): the same event, the same blame
