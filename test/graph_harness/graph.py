@@ -204,3 +204,13 @@ class Collector:
         with self._lock:
             self.messages.clear()
             self.receive_times.clear()
+
+
+def newest_status_values(diag, name):
+    """Return the key-value pairs of the newest status ``name`` a /diagnostics Collector holds."""
+    values = {}
+    for msg in diag.snapshot()[0]:
+        for status in msg.status:
+            if status.name == name:
+                values = {kv.key: kv.value for kv in status.values}
+    return values

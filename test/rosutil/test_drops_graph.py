@@ -8,18 +8,15 @@ not one per message. ``output_file`` cannot be set to empty at run time.
 """
 import time
 
+from graph_harness.graph import newest_status_values
 import pytest
 
 pytestmark = pytest.mark.graph
 
 
 def _dropped(diag, node):
-    values = {}
-    for msg in diag.snapshot()[0]:
-        for status in msg.status:
-            if status.name == f'{node}: dropped messages':
-                values = {kv.key: kv.value for kv in status.values}
-    return values
+    """Return the newest ``<node>: dropped messages`` values seen on /diagnostics."""
+    return newest_status_values(diag, f'{node}: dropped messages')
 
 
 def _wait_for(diag, node, key, count, send, timeout=30.0):

@@ -15,6 +15,7 @@ import time
 from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
 from accelcal_ros.rosutil.drops import THROTTLE_S
+from graph_harness.graph import newest_status_values
 import pytest
 
 pytestmark = pytest.mark.graph
@@ -27,12 +28,7 @@ TIMEOUT_S = 60.0
 
 def _dropped(diag, node):
     """Return the newest ``<node>: dropped messages`` values seen on /diagnostics."""
-    values = {}
-    for msg in diag.snapshot()[0]:
-        for status in msg.status:
-            if status.name == f'{node}: dropped messages':
-                values = {kv.key: kv.value for kv in status.values}
-    return values
+    return newest_status_values(diag, f'{node}: dropped messages')
 
 
 def _burst(proc, diag, node, kind, send, fragment, count=BURST):
