@@ -120,19 +120,36 @@ class Graph:
         """Subscribe and collect messages with their receive time: returns a Collector."""
         return Collector(self.node, msg_type, topic, qos)
 
-    def call(self, srv_type, name, request=None, timeout=30.0):
-        """Call a service (waiting for it to appear); returns the response."""
+    def call(self, srv_type, name, request=None, timeout=30.0, resend_s=None):
+        """
+        Call a service (waiting for it to appear); returns the response.
+
+        ``resend_s``: for an idempotent service (parameters), send the request again when
+        no answer came within this many seconds. A server answers a new client only once it
+        has matched the client's reply reader, and it waits 100 ms for that (rmw_fastrtps'
+        send_response); a request sent just after the service appeared can lose its answer
+        while discovery is slow (a loaded machine). Never set it for a service that changes
+        state (start, capture, ...): a second request there is a second action.
+        """
         client = self.node.create_client(srv_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise TimeoutError(f'service {name} did not appear in {timeout} s')
-            future = client.call_async(request if request is not None else srv_type.Request())
+            request = request if request is not None else srv_type.Request()
             deadline = time.monotonic() + timeout
-            while not future.done():
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f'service {name} did not answer in {timeout} s')
-                time.sleep(0.01)
-            return future.result()
+            sends = 0
+            while True:
+                future = client.call_async(request)
+                sends += 1
+                resend_at = deadline if resend_s is None else time.monotonic() + resend_s
+                while not future.done() and time.monotonic() < min(deadline, resend_at):
+                    time.sleep(0.01)
+                if future.done():
+                    return future.result()
+                if time.monotonic() >= deadline:
+                    raise TimeoutError(f'service {name} did not answer in {timeout} s '
+                                       f'({sends} requests)')
+                client.remove_pending_request(future)
         finally:
             self.node.destroy_client(client)
 
@@ -145,7 +162,7 @@ class Graph:
         request.parameters = [Parameter(k, value=v).to_parameter_msg()
                               for k, v in values.items()]
         return self.call(SetParameters, f'/{node_name}/set_parameters', request,
-                         timeout).results
+                         timeout, resend_s=5.0).results
 
     def get_parameters(self, node_name, names, timeout=30.0):
         """``ros2 param get``: returns {name: python value}."""
@@ -154,7 +171,8 @@ class Graph:
 
         request = GetParameters.Request()
         request.names = list(names)
-        response = self.call(GetParameters, f'/{node_name}/get_parameters', request, timeout)
+        response = self.call(GetParameters, f'/{node_name}/get_parameters', request, timeout,
+                             resend_s=5.0)
         return {n: parameter_value_to_python(v) for n, v in zip(names, response.values)}
 
     def close(self):

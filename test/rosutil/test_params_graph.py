@@ -39,16 +39,8 @@ def _start_overrides(node):
 
 
 def _call(graph, srv_type, name, request=None):
-    """
-    Call a service; once more if no answer came.
-
-    A request sent just after the service appeared can lose its answer while the reply
-    path is still being matched (DDS discovery, worse on a loaded machine).
-    """
-    try:
-        return graph.call(srv_type, name, request, timeout=30.0)
-    except TimeoutError:
-        return graph.call(srv_type, name, request, timeout=20.0)
+    """Call a parameter service (idempotent: sent again if its answer is lost)."""
+    return graph.call(srv_type, name, request, timeout=40.0, resend_s=5.0)
 
 
 def _set(graph, node, values):
