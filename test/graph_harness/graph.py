@@ -137,6 +137,8 @@ class Graph:
                 raise TimeoutError(f'service {name} did not appear in {timeout} s')
             request = request if request is not None else srv_type.Request()
             deadline = time.monotonic() + timeout
+            if resend_s is None:
+                self._until_server_knows_client(name, timeout)
             sends = 0
             while True:
                 future = client.call_async(request)
@@ -152,6 +154,29 @@ class Graph:
                 client.remove_pending_request(future)
         finally:
             self.node.destroy_client(client)
+
+    def _until_server_knows_client(self, name, timeout):
+        """
+        Return once the node serving ``name`` has matched a client created before now.
+
+        A service that changes state cannot be sent twice, so before its one request the
+        node's own get_parameters (idempotent, sent again until answered) is called through
+        a client created after this one: the probe announces its endpoints to the node in
+        order on one reliable discovery channel, so the node's answer to the later client
+        shows it has matched the earlier one's reply reader too. Services outside a node's
+        namespace (no ``<node>/get_parameters`` beside them) are sent as they are.
+        """
+        from rcl_interfaces.srv import GetParameters
+
+        node_name = name.rsplit('/', 1)[0] if '/' in name.strip('/') else ''
+        if not node_name:
+            return
+        node_name = '/' + node_name.lstrip('/')
+        services = {n for n, _ in self.node.get_service_names_and_types()}
+        if f'{node_name}/get_parameters' not in services:
+            return
+        self.call(GetParameters, f'{node_name}/get_parameters', GetParameters.Request(),
+                  timeout, resend_s=5.0)
 
     def set_parameters(self, node_name, values, timeout=30.0):
         """``ros2 param set``: returns the list of SetParametersResult."""
