@@ -120,6 +120,11 @@ class CameraPlanes:
                  np.abs(py[1:, :-1] - py[:-1, :-1]) + np.abs(py[:-1, 1:] - py[:-1, :-1])]
         return 1.01 * max(float(step[both].max()) for step in steps)
 
+    def holds(self, version: Any) -> bool:
+        """Return True when some plane was resampled from the mosaic's ``version``."""
+        return version is not None and version == self._version and \
+            any(done is not None for done in self._done)
+
     def prepare(self, mosaic: np.ndarray, needs: Dict[int, Rect], version: Any = None) -> None:
         """
         Resample the rectangles ``needs`` (camera -> plane rectangle) from ``mosaic``.
@@ -180,6 +185,8 @@ class WarpPlan:
         shift = np.array([[1.0, 0.0, -cx], [0.0, 1.0, -cy], [0.0, 0.0, 1.0]])
         a = np.asarray(rotations, float) @ shift  # view pixel (u, v, 1) -> camera i
         self.width, self.height = width, height
+        self.rotations = a
+        """``A_i`` with the shift: view pixel ``(u, v, 1)`` -> camera ``i`` (n, 3, 3)."""
         # pieces: (camera, homography from the piece's origin, rectangle, the columns
         # to take within it per row (2, rows: first, last), or None for all of them)
         self.parts: List[Tuple[int, np.ndarray, Rect, Optional[np.ndarray]]] = []
@@ -199,6 +206,9 @@ class WarpPlan:
                             [-0.5, height - 0.5, 1.0], [width - 0.5, height - 0.5, 1.0]])
         keep = ~((lines @ corners.T) < 0).all(axis=2).any(axis=1)
         cams = np.nonzero(keep)[0]
+        first = np.full(height, width, np.int64)
+        last = np.full(height, -1, np.int64)
+        widths = np.zeros(height, np.int64)
         lines = lines[cams]
         v = np.arange(height, dtype=float)
         coef = lines[..., 0:1]
@@ -232,6 +242,9 @@ class WarpPlan:
             if need[2] <= need[0] or need[3] <= need[1]:
                 continue
             self.needs[i] = need
+            np.minimum(first[y0:y1], li, out=first[y0:y1])
+            np.maximum(last[y0:y1], hi_i, out=last[y0:y1])
+            widths[y0:y1] += hi_i - li + 1
             # per band of rows, the columns every row of the band holds are drawn
             # straight; the slivers left and right of them through a mask of the pixels
             # whose centres lie in the region (a slanted seam, a tapering corner)
@@ -249,6 +262,9 @@ class WarpPlan:
                 for s0, s1 in ((b0, inner0), (inner1, b1)):
                     if s1 > s0:
                         self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
+        self.covers_all = bool((first == 0).all() and (last == width - 1).all() and
+                               (widths >= width).all())
+        """Every pixel lies in some camera's region (nothing to black out first)."""
         self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
             self.parts[0][2] == (0, 0, width, height)
 
@@ -279,7 +295,7 @@ class WarpPlan:
         import cv2
 
         assert planes.images is not None
-        if not self.single:
+        if not self.covers_all:
             canvas[...] = 0
         flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
         ramp = np.arange(self.width)

@@ -1,0 +1,59 @@
+"""The direct renderer's maps (view_grid): every pixel against the exact lens, and its use."""
+import math
+
+from accelcal_ros.camera.rig import ring_rig
+from accelcal_ros.panorama.mosaic import OUTSIDE
+from accelcal_ros.panorama.view import LevelledView, ViewMosaic, ViewPose
+import numpy as np
+import pytest
+
+LENS = (-0.1, 0.02, 0.0005, -0.0003, 0.0)
+
+
+@pytest.mark.parametrize('az, el, fov', [(0.0, 0.0, 60.0), (20.0, -4.0, 45.0),
+                                         (-55.0, 3.0, 90.0), (10.0, 30.0, 120.0)])
+def test_grid_maps_match_the_exact_lens_within_tolerance(az, el, fov):
+    """Each camera part's interpolated map is within tolerance_px of the exact lookup."""
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, mount_error_deg=0.5, seed=2)
+    mosaic = ViewMosaic(rig)
+    view = LevelledView(rig, mosaic.layout, 480, 320, ViewPose.from_degrees(az, el, fov))
+    view.set_attitude(math.radians(4.0), math.radians(-8.0))
+    view.render(mosaic.image, 1)
+    grid = view._grid
+    assert grid is not None and grid.plan.parts
+    exact = view.builder.build_exact(*view.attitude)
+    checked = 0
+    worst = 0.0
+    for i, _, (x0, y0, x1, y1), poly in grid.plan.parts:
+        fine, ox, oy = grid.maps[i]
+        offset = np.asarray(mosaic.layout.offsets[i], np.float32)
+        got = fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox] + offset
+        want = exact[y0:y1, x0:x1]
+        cols = np.arange(x1 - x0)
+        mine = np.ones(got.shape[:2], bool) if poly is None else \
+            (cols >= poly[0][:, None]) & (cols <= poly[1][:, None])
+        ok = mine & (want[..., 0] != OUTSIDE)
+        checked += int(ok.sum())
+        if ok.any():
+            worst = max(worst, float(np.abs(got - want)[ok].max()))
+    assert checked > 0.3 * 480 * 320
+    assert worst <= view.tolerance_px, worst
+    assert grid.worst_px <= 0.75 * view.tolerance_px
+
+
+def test_first_frame_of_a_set_is_drawn_direct_and_again_from_the_planes():
+    """A new frame set: the direct maps; the same set again: the shared undistorted planes."""
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, seed=2)
+    mosaic = ViewMosaic(rig)
+    rng = np.random.default_rng(4)
+    for i in range(len(rig)):
+        mosaic.set_image(i, rng.integers(0, 255, (240, 320, 3), dtype=np.uint8))
+    view = LevelledView(rig, mosaic.layout, 320, 240, ViewPose.from_degrees(10.0, 0.0, 50.0))
+    view.set_attitude(0.0, 0.0)
+    view.render(mosaic.image, mosaic.version)
+    assert view.planes is None or not view.planes.holds(mosaic.version)
+    view.render(mosaic.image, mosaic.version)
+    assert view.planes is not None and view.planes.holds(mosaic.version)
+    mosaic.set_image(0, None)
+    view.render(mosaic.image, mosaic.version)
+    assert not view.planes.holds(mosaic.version)
