@@ -29,20 +29,23 @@ by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all 
 offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
 and the zoom.
 
-A frame is drawn one of two ways (``renderer``). ``'warp'`` (the default while the view
-or the attitude moves): up to the lens, a view pixel's ray in camera ``i`` is a
-homography, so each camera's part of the view -- a convex region bounded by eq. 6's
-great circles, straight lines in a rectilinear view -- is one ``cv2.warpPerspective`` of
-that camera's undistorted image plane, resampled from the mosaic through a fixed map
-built from the same lens code, once per frame set for all the views sharing it
-(:mod:`.view_warp`); nothing is rebuilt when the view moves. ``'map'``: the lookup (view
+A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): the first
+frame of a frame set (live video: every frame) straight from the camera images, one
+``cv2.remap`` per camera part with that camera's map interpolated from a coarse exact
+grid (:mod:`.view_grid`), and a frame set drawn again -- a view moving over it, or
+another view posed alike -- as ``'warp'``. ``'warp'``: up to the lens, a view pixel's
+ray in camera ``i`` is a homography, so each camera's part of the view -- a convex
+region bounded by eq. 6's great circles, straight lines in a rectilinear view -- is one
+``cv2.warpPerspective`` of that camera's undistorted image plane, resampled from the
+mosaic through a fixed map built from the same lens code, once per frame set for all
+the views sharing it (:mod:`.view_warp`). ``'map'``: the lookup (view
 pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast builder
 (:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
 interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
 error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
 map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
-lookup). A ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
+lookup). A ``'grid'`` or ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
 builds its lookup and remaps from then on (a remap with a ready map is the cheapest
 frame). The view follows the attitude and its pose only when its rotation in the
 cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
@@ -73,10 +76,11 @@ MIN_FOV_H_DEG = 0.5
 DEFAULT_VIEW_GAP_PX = 64
 """Black gap between the images of a views-only mosaic (:class:`ViewMosaic`)."""
 RENDERERS = ('grid', 'warp', 'map')
-"""How :meth:`LevelledView.render` draws: a homography per camera (:mod:`.view_warp`,
-the default) or a ``cv2.remap`` of the lookup map (:meth:`LevelledView.lookup`)."""
+"""How :meth:`LevelledView.render` draws: from the cameras by interpolated maps
+(:mod:`.view_grid`, the default; a frame set drawn again as ``'warp'``), a homography
+per camera (:mod:`.view_warp`) or a ``cv2.remap`` of the lookup map."""
 STILL_FRAMES_BEFORE_MAP = 3
-"""A ``'warp'`` view still for this many frames builds its lookup and remaps from then on."""
+"""A ``'grid'`` or ``'warp'`` view still for this many frames builds its lookup and remaps from then on."""
 COVERAGE_SAMPLES = 96
 """Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`."""
 
@@ -340,10 +344,11 @@ class LevelledView:
             mosaic.set_image(i, image)
         frame = view.render(mosaic.image, mosaic.version)  # owned by the view: copy to keep
 
-    ``renderer`` (:data:`RENDERERS`): ``'warp'`` draws each camera's part by a homography
-    from its undistorted plane (:mod:`.view_warp`; ``planes`` may be shared by the views
-    of one mosaic), ``'map'`` by one ``cv2.remap`` of the lookup. Bad values raise
-    :class:`InputError` and leave the view as it was.
+    ``renderer`` (:data:`RENDERERS`): ``'grid'`` draws a frame set's first frame from the
+    camera images (:mod:`.view_grid`; ``sources`` may be shared) and the rest as
+    ``'warp'``, by a homography per camera from its undistorted plane (:mod:`.view_warp`;
+    ``planes`` may be shared by the views of one mosaic); ``'map'`` by one ``cv2.remap``
+    of the lookup. Bad values raise :class:`InputError` and leave the view as it was.
     """
 
     def __init__(self, rig: Any, layout: MosaicLayout, width: int, height: int,

@@ -119,21 +119,25 @@ class GridMaps:
         # node k at box pixel k s - 1/2: the resize's sample position of node k is fine
         # pixel (k + 1/2) s - 1/2, the box starting at fine pixel s/2; the cells' centres
         # are evaluated too, to bound the bilinear interpolation's error
-        us = (np.arange(2 * nx - 1) * (step / 2.0) - 0.5 + x0 - cx).astype(np.float32)
-        vs = (np.arange(2 * ny - 1) * (step / 2.0) - 0.5 + y0 - cy).astype(np.float32)
-        rays = np.empty((3, len(vs), len(us)), np.float32)
-        rays[0] = us[None, :]
-        rays[1] = vs[:, None]
+        us = (np.arange(nx) * step - 0.5 + x0 - cx).astype(np.float32)
+        vs = (np.arange(ny) * step - 0.5 + y0 - cy).astype(np.float32)
+        nodes, centres = nx * ny, (nx - 1) * (ny - 1)
+        rays = np.empty((3, nodes + centres), np.float32)
+        rays[0, :nodes] = np.tile(us, ny)
+        rays[1, :nodes] = np.repeat(vs, nx)
+        rays[0, nodes:] = np.tile(us[:-1] + 0.5 * step, ny - 1)
+        rays[1, nodes:] = np.repeat(vs[:-1] + 0.5 * step, nx - 1)
         rays[2] = 1.0
-        _, px, py, side = projection._evaluate_soa(rays.reshape(3, -1), rotations, only=i)
-        both = np.stack([px, py], axis=-1).reshape(len(vs), len(us), 2)
-        bad = ((side & 16) != 0).reshape(len(vs), len(us))
-        both[bad] = OUTSIDE
-        coarse = np.ascontiguousarray(both[::2, ::2])
-        centre = both[1::2, 1::2]
+        _, px, py, side = projection._evaluate_soa(rays, rotations, only=i)
+        bad = (side & 16) != 0
+        px[bad] = OUTSIDE
+        py[bad] = OUTSIDE
+        coarse = np.stack([px[:nodes], py[:nodes]], axis=-1).reshape(ny, nx, 2)
+        centre = np.stack([px[nodes:], py[nodes:]], axis=-1).reshape(ny - 1, nx - 1, 2)
         mean = 0.25 * (coarse[:-1, :-1] + coarse[1:, :-1] + coarse[:-1, 1:] + coarse[1:, 1:])
-        good = ~(bad[::2, ::2][:-1, :-1] | bad[::2, ::2][1:, :-1] | bad[::2, ::2][:-1, 1:] |
-                 bad[::2, ::2][1:, 1:] | bad[1::2, 1::2])
+        b = bad[:nodes].reshape(ny, nx)
+        good = ~(b[:-1, :-1] | b[1:, :-1] | b[:-1, 1:] | b[1:, 1:] |
+                 bad[nodes:].reshape(ny - 1, nx - 1))
         error = float(np.abs(mean - centre).max(axis=-1)[good].max(initial=0.0))
         fine = cv2.resize(coarse, (nx * step, ny * step), interpolation=cv2.INTER_LINEAR)
         return fine, x0 - step // 2, y0 - step // 2, error
@@ -144,10 +148,8 @@ class GridMaps:
         import cv2
 
         plan = self.plan
-        if not plan.covers_all:
-            canvas[...] = 0
-        ramp = np.arange(plan.width)
-        for i, _, (x0, y0, x1, y1), poly in plan.parts:
+        plan.blank(canvas)
+        for k, (i, _, (x0, y0, x1, y1), poly) in enumerate(plan.parts):
             src = sources.get(mosaic, i, version)
             fine, ox, oy = self.maps[i]
             m = fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
@@ -158,8 +160,6 @@ class GridMaps:
             part = scratch[y0:y1, x0:x1]
             cv2.remap(src, m, cast(Any, None), cv2.INTER_LINEAR, dst=part,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            columns = ramp[:x1 - x0]
-            mask = (columns >= poly[0][:, None]) & (columns <= poly[1][:, None])
-            cv2.copyTo(part, mask.view(np.uint8), canvas[y0:y1, x0:x1])
+            cv2.copyTo(part, plan.mask(k), canvas[y0:y1, x0:x1])
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)

@@ -262,9 +262,11 @@ class WarpPlan:
                 for s0, s1 in ((b0, inner0), (inner1, b1)):
                     if s1 > s0:
                         self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
-        self.covers_all = bool((first == 0).all() and (last == width - 1).all() and
-                               (widths >= width).all())
-        """Every pixel lies in some camera's region (nothing to black out first)."""
+        short = (first > 0) | (last < width - 1) | (widths < width)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], short.view(np.int8), [0]])))
+        self.blank_rows = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+        """Runs of rows ``[r0, r1)`` some pixel of which no camera's region holds."""
+        self._masks: Dict[int, np.ndarray] = {}
         self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
             self.parts[0][2] == (0, 0, width, height)
 
@@ -283,6 +285,32 @@ class WarpPlan:
         self._piece(i, h, (s0, y0 + k0, s1, y0 + k1),
                     np.stack([a[k0:k1] - s0, b[k0:k1] - s0]))
 
+    def mask(self, k: int) -> np.ndarray:
+        """
+        Return the mask (uint8, 1 on the region's pixels) of sliver part ``k``.
+
+        Drawn by ``cv2.fillPoly`` through each row's first and last column (integer
+        vertices on every row: exactly the rows' column ranges), cached with the plan.
+        """
+        import cv2
+
+        mask = self._masks.get(k)
+        if mask is None:
+            _, _, (x0, y0, x1, y1), poly = self.parts[k]
+            assert poly is not None
+            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            rows = np.arange(y1 - y0, dtype=np.int32)
+            edge = np.concatenate([np.stack([poly[0], rows], axis=1),
+                                   np.stack([poly[1], rows], axis=1)[::-1]])
+            cv2.fillPoly(mask, [edge.astype(np.int32)], 1)
+            self._masks[k] = mask
+        return mask
+
+    def blank(self, canvas: np.ndarray) -> None:
+        """Black out the rows of ``canvas`` some pixel of which no camera's region holds."""
+        for r0, r1 in self.blank_rows:
+            canvas[r0:r1] = 0
+
     def render(self, planes: CameraPlanes, out: np.ndarray, canvas: np.ndarray,
                scratch: np.ndarray) -> None:
         """
@@ -295,11 +323,9 @@ class WarpPlan:
         import cv2
 
         assert planes.images is not None
-        if not self.covers_all:
-            canvas[...] = 0
+        self.blank(canvas)
         flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
-        ramp = np.arange(self.width)
-        for i, m, (x0, y0, x1, y1), poly in self.parts:
+        for k, (i, m, (x0, y0, x1, y1), poly) in enumerate(self.parts):
             src = planes.images[i]
             if poly is None:
                 cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=canvas[y0:y1, x0:x1],
@@ -309,8 +335,6 @@ class WarpPlan:
             part = scratch[y0:y1, x0:x1]
             cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=part, flags=flags,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            columns = ramp[:x1 - x0]
-            mask = (columns >= poly[0][:, None]) & (columns <= poly[1][:, None])
-            cv2.copyTo(part, mask.view(np.uint8), canvas[y0:y1, x0:x1])
+            cv2.copyTo(part, self.mask(k), canvas[y0:y1, x0:x1])
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)
