@@ -9,13 +9,14 @@ output from the same mosaic with a precomputed map. The floor's map is the type 
 precomputed map is used in (the still view, the stitcher): 16-bit fixed point
 (``CV_16SC2`` + ``CV_16UC1``, from ``cv2.convertMaps``); a float map (``CV_32FC2``, the
 earlier floor, slower) is printed beside it. Rows: the view still (its lookup reused),
-moving every frame (the frame set unchanged: drawn from the cameras' undistorted planes,
-resampled where the view needs it; or a new frame set every frame, live video: drawn
-straight from the camera images by interpolated maps, ``'grid'``), the attitude changing
-with every new frame set, the view moving over new frame sets drawn from the planes
-(``'warp'``, the previous way) and with the lookup renderer (``'map'``: a rebuild by the
-fast builder every frame, the first way). Each figure twice: wall
-time with ``--threads`` OpenCV threads, and CPU time of the one thread doing the work
+moving every frame (the frame set unchanged, or a new frame set every frame: live
+video), the attitude changing with every new frame set -- these with the default
+renderer (``'grid'``: a frame set's first frame straight from the camera images by
+interpolated maps, the same set again from the cameras' undistorted planes) --, the
+view moving over new frame sets from the planes only (``'warp'``, the previous way),
+and with the lookup renderer (``'map'``: a rebuild by the fast builder every frame).
+Each figure twice: wall time with ``--threads`` OpenCV threads, and CPU time of the one
+thread doing the work
 with one OpenCV thread (``time.thread_time``: what the frame costs, little affected by
 other processes on a shared machine). Rows are measured in turns, ``--rounds`` times.
 

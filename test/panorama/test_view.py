@@ -90,7 +90,7 @@ def test_view_matches_the_scenes_own_pinhole_view(scene, mount, roll_deg, pitch_
                                                          imu_to_camera)):
         mosaic.set_image(i, image)
     pose = ViewPose.from_degrees(az, el, fov)
-    view = LevelledView(rig, mosaic.layout, 480, 320, pose)
+    view = LevelledView(rig, mosaic.layout, 480, 320, pose, renderer='grid')
     view.set_attitude(roll, pitch)
     # a frame set's first frame: straight from the cameras (view_grid); drawn again: from
     # the undistorted planes (view_warp); both held to the ground truth

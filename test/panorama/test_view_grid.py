@@ -16,7 +16,8 @@ def test_grid_maps_match_the_exact_lens_within_tolerance(az, el, fov):
     """Each camera part's interpolated map is within tolerance_px of the exact lookup."""
     rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, mount_error_deg=0.5, seed=2)
     mosaic = ViewMosaic(rig)
-    view = LevelledView(rig, mosaic.layout, 480, 320, ViewPose.from_degrees(az, el, fov))
+    view = LevelledView(rig, mosaic.layout, 480, 320, ViewPose.from_degrees(az, el, fov),
+                        renderer='grid')
     view.set_attitude(math.radians(4.0), math.radians(-8.0))
     view.render(mosaic.image, 1)
     grid = view._grid
@@ -48,7 +49,8 @@ def test_first_frame_of_a_set_is_drawn_direct_and_again_from_the_planes():
     rng = np.random.default_rng(4)
     for i in range(len(rig)):
         mosaic.set_image(i, rng.integers(0, 255, (240, 320, 3), dtype=np.uint8))
-    view = LevelledView(rig, mosaic.layout, 320, 240, ViewPose.from_degrees(10.0, 0.0, 50.0))
+    view = LevelledView(rig, mosaic.layout, 320, 240, ViewPose.from_degrees(10.0, 0.0, 50.0),
+                        renderer='grid')
     view.set_attitude(0.0, 0.0)
     view.render(mosaic.image, mosaic.version)
     assert view.planes is None or not view.planes.holds(mosaic.version)
