@@ -28,7 +28,7 @@ set: the 4-channel camera images; per frame: the remaps.
 from typing import Any, cast, Dict, List, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
-from accelcal_ros.panorama.view_warp import WarpPlan
+from accelcal_ros.panorama.view_warp import Rect, WarpPlan
 import numpy as np
 
 GRID_STEP_PX = 16
@@ -44,37 +44,46 @@ class CameraSources:
     The rig cameras' images as the remaps read them, per frame set (shared by views).
 
     ``layout`` is the mosaic's :class:`~.mosaic.MosaicLayout`; :meth:`get` returns camera
-    ``i``'s part of the mosaic (4 channels for a colour mosaic, converted once per
-    ``version``; the mosaic's own slice for grey).
+    ``i``'s part of the mosaic: for a colour mosaic a 4-channel copy of which only the
+    rectangle asked for is sure to be converted (once per ``version``: a view asking for
+    more converts only what is new), for grey the mosaic's own slice.
     """
 
     def __init__(self, layout: Any, sizes: List[Tuple[int, int]]) -> None:
         self.offsets = [(int(x), int(y)) for x, y in layout.offsets]
         self.sizes = sizes
-        self._images: Dict[int, np.ndarray] = {}
+        self._done: Dict[int, Rect] = {}
         self._buffers: Dict[int, np.ndarray] = {}
         self._version: Any = object()
 
-    def get(self, mosaic: np.ndarray, i: int, version: Any = None) -> np.ndarray:
-        """Return camera ``i``'s image of ``mosaic`` (None: converted again every call)."""
+    def get(self, mosaic: np.ndarray, i: int, rect: Rect, version: Any = None) -> np.ndarray:
+        """Return camera ``i``'s image of ``mosaic``, right within ``rect`` (camera pixels)."""
         import cv2
 
-        if version is None or version != self._version:
-            self._images.clear()
-            self._version = object() if version is None else version
-        image = self._images.get(i)
-        if image is not None:
-            return image
         (x0, y0), (w, h) = self.offsets[i], self.sizes[i]
         part = mosaic[y0:y0 + h, x0:x0 + w]
-        if mosaic.ndim == 3 and mosaic.shape[2] == 3:
-            buffer = self._buffers.get(i)
-            if buffer is None or buffer.shape != (h, w, 4):
-                buffer = self._buffers[i] = np.empty((h, w, 4), np.uint8)
-            cv2.cvtColor(part, cv2.COLOR_BGR2BGRA, dst=buffer)
-            part = buffer
-        self._images[i] = part
-        return part
+        if not (mosaic.ndim == 3 and mosaic.shape[2] == 3):
+            return part
+        if version is None or version != self._version:
+            self._done.clear()
+            self._version = object() if version is None else version
+        buffer = self._buffers.get(i)
+        if buffer is None or buffer.shape != (h, w, 4):
+            buffer = self._buffers[i] = np.empty((h, w, 4), np.uint8)
+        done = self._done.get(i)
+        if done is None:
+            parts, done = [rect], rect
+        else:  # convert only the strips around what is done already
+            u = (min(rect[0], done[0]), min(rect[1], done[1]), max(rect[2], done[2]),
+                 max(rect[3], done[3]))
+            parts = [(u[0], u[1], u[2], done[1]), (u[0], done[3], u[2], u[3]),
+                     (u[0], done[1], done[0], done[3]), (done[2], done[1], u[2], done[3])]
+            done = u
+        for a0, b0, a1, b1 in parts:
+            if a1 > a0 and b1 > b0:
+                cv2.cvtColor(part[b0:b1, a0:a1], cv2.COLOR_BGR2BGRA, dst=buffer[b0:b1, a0:a1])
+        self._done[i] = done
+        return buffer
 
 
 class GridMaps:
@@ -93,23 +102,25 @@ class GridMaps:
         self.worst_px = 0.0
         """The largest interpolation error found at the cells' centres (camera pixels)."""
         self.maps: Dict[int, Tuple[np.ndarray, int, int]] = {}  # camera: (map, x0, y0)
+        self.rects: Dict[int, Rect] = {}  # camera: the pixels its map reaches
         boxes: Dict[int, List[int]] = {}
         for i, _, (x0, y0, x1, y1), _ in plan.parts:
             box = boxes.setdefault(i, [x0, y0, x1, y1])
             box[:] = [min(box[0], x0), min(box[1], y0), max(box[2], x1), max(box[3], y1)]
         for i, box in boxes.items():
             for s in (step, step // 2, step // 4):
-                fine, ox, oy, error = self._camera_map(projection, rotations, i, box, cx, cy,
-                                                       max(2, s))
+                fine, ox, oy, error, rect = self._camera_map(projection, rotations, i, box,
+                                                             cx, cy, max(2, s))
                 if error <= CHECK_FRACTION * tolerance_px:
                     break
             self.maps[i] = (fine, ox, oy)
+            self.rects[i] = rect
             self.worst_px = max(self.worst_px, error)
 
     @staticmethod
     def _camera_map(projection: Any, rotations: np.ndarray, i: int, box: List[int],
                     cx: float, cy: float, step: int
-                    ) -> Tuple[np.ndarray, int, int, float]:
+                    ) -> Tuple[np.ndarray, int, int, float, Rect]:
         """Return camera ``i``'s map over ``box`` at node spacing ``step``, its origin, error."""
         import cv2
 
@@ -139,8 +150,18 @@ class GridMaps:
         good = ~(b[:-1, :-1] | b[1:, :-1] | b[:-1, 1:] | b[1:, 1:] |
                  bad[nodes:].reshape(ny - 1, nx - 1))
         error = float(np.abs(mean - centre).max(axis=-1)[good].max(initial=0.0))
+        w, h = projection.rig.cameras[i].width, projection.rig.cameras[i].height
+        ok = ~b
+        if ok.any():  # the camera pixels the map can reach, with the bilinear taps
+            xs, ys = coarse[..., 0][ok], coarse[..., 1][ok]
+            rect = (min(w, max(0, int(np.floor(xs.min())))),
+                    min(h, max(0, int(np.floor(ys.min())))),
+                    max(0, min(w, int(np.floor(xs.max())) + 2)),
+                    max(0, min(h, int(np.floor(ys.max())) + 2)))
+        else:
+            rect = (0, 0, 0, 0)
         fine = cv2.resize(coarse, (nx * step, ny * step), interpolation=cv2.INTER_LINEAR)
-        return fine, x0 - step // 2, y0 - step // 2, error
+        return fine, x0 - step // 2, y0 - step // 2, error, rect
 
     def render(self, sources: CameraSources, mosaic: np.ndarray, version: Any,
                out: np.ndarray, canvas: np.ndarray, scratch: np.ndarray) -> None:
@@ -149,8 +170,9 @@ class GridMaps:
 
         plan = self.plan
         plan.blank(canvas)
+        images = {i: sources.get(mosaic, i, rect, version) for i, rect in self.rects.items()}
         for k, (i, _, (x0, y0, x1, y1), poly) in enumerate(plan.parts):
-            src = sources.get(mosaic, i, version)
+            src = images[i]
             fine, ox, oy = self.maps[i]
             m = fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
             if poly is None:
