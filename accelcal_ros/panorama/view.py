@@ -45,7 +45,7 @@ interpolation of the pure cells, seams evaluated exactly); a pure cell's interpo
 error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
 map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
-lookup). A ``'grid'`` or ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
+lookup). A ``'grid'`` or ``'warp'`` view still for :data:`STILL_FRAMES_BEFORE_MAP` frames
 builds its lookup and remaps from then on (a remap with a ready map is the cheapest
 frame). The view follows the attitude and its pose only when its rotation in the
 cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
@@ -80,7 +80,8 @@ RENDERERS = ('grid', 'warp', 'map')
 (:mod:`.view_grid`, the default; a frame set drawn again as ``'warp'``), a homography
 per camera (:mod:`.view_warp`) or a ``cv2.remap`` of the lookup map."""
 STILL_FRAMES_BEFORE_MAP = 3
-"""A ``'grid'`` or ``'warp'`` view still for this many frames builds its lookup and remaps from then on."""
+"""A ``'grid'`` or ``'warp'`` view still for this many frames builds its lookup and remaps
+from then on."""
 COVERAGE_SAMPLES = 96
 """Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`."""
 

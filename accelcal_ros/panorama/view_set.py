@@ -192,8 +192,9 @@ class ViewSet:
         Return ``view`` of the current frame set (its own buffer; hold :attr:`lock`).
 
         The views share each camera's image as the direct renderer reads it and its
-        undistorted plane, each made once per frame set, and a view posed exactly as another one already drawn from this frame set
-        copies that frame instead of drawing it again (:attr:`shared_frames` counts).
+        undistorted plane, each made once per frame set, and a view posed exactly as
+        another one already drawn from this frame set copies that frame instead of
+        drawing it again (:attr:`shared_frames` counts).
         """
         key = (self.mosaic.version, view.pose, view.attitude, view.width, view.height)
         if self._drawn_version != key[0]:

@@ -287,7 +287,7 @@ class WarpPlan:
 
     def mask(self, k: int) -> np.ndarray:
         """
-        Return the mask (uint8, 1 on the region's pixels) of sliver part ``k``.
+        Return the pixels of sliver part ``k`` in its region (uint8, 1 in it, else 0).
 
         Drawn by ``cv2.fillPoly`` through each row's first and last column (integer
         vertices on every row: exactly the rows' column ranges), cached with the plan.
