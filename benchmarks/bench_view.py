@@ -9,11 +9,14 @@ output from the same mosaic with a precomputed map. The floor's map is the type 
 precomputed map is used in (the still view, the stitcher): 16-bit fixed point
 (``CV_16SC2`` + ``CV_16UC1``, from ``cv2.convertMaps``); a float map (``CV_32FC2``, the
 earlier floor, slower) is printed beside it. Rows: the view still (its lookup reused),
-moving every frame (the frame set unchanged, or a new frame set every frame: each
-camera's undistorted plane resampled where the view needs it), the attitude changing
-with every new frame set, and the view moving with the lookup renderer (``'map'``: a
-rebuild by the fast builder every frame, the previous way). Each figure twice: wall
-time with ``--threads`` OpenCV threads, and CPU time of the one thread doing the work
+moving every frame (the frame set unchanged, or a new frame set every frame: live
+video), the attitude changing with every new frame set -- these with the default
+renderer (``'grid'``: a frame set's first frame straight from the camera images by
+interpolated maps, the same set again from the cameras' undistorted planes) --, the
+view moving over new frame sets from the planes only (``'warp'``, the previous way),
+and with the lookup renderer (``'map'``: a rebuild by the fast builder every frame).
+Each figure twice: wall time with ``--threads`` OpenCV threads, and CPU time of the one
+thread doing the work
 with one OpenCV thread (``time.thread_time``: what the frame costs, little affected by
 other processes on a shared machine). Rows are measured in turns, ``--rounds`` times.
 
@@ -80,13 +83,14 @@ def view_rows(rig, images, w, h, pitch):
     fixed = cv2.convertMaps(float_map, None, cv2.CV_16SC2)
     out = np.empty((h, w, 3), np.uint8)
 
-    def view(renderer='warp'):
+    def view(renderer='grid'):
         v = LevelledView(rig, mosaic.layout, w, h, ViewPose.from_degrees(0, 0, 60),
                          renderer=renderer)
         v.set_attitude(0.0, pitch)
         return v
 
-    still, moving, fresh, tilting, old = view(), view(), view(), view(), view('map')
+    still, moving, fresh, tilting = view(), view(), view(), view()
+    planes, old = view('warp'), view('map')
 
     def pose(k):
         return ViewPose.from_degrees(-30.0 + 0.7 * (k % 80), 2.0 * math.sin(k / 7), 60.0)
@@ -110,6 +114,7 @@ def view_rows(rig, images, w, h, pitch):
         'view moving, same frame set': move(moving, lambda k: 0),
         'view moving, new frame set': move(fresh, lambda k: k),
         'attitude moving, new frame set': tilt,
+        'view moving, new frame set, planes': move(planes, lambda k: k),
         'view moving, lookup rebuilt': move(old, lambda k: None),
     }
 

@@ -29,20 +29,23 @@ by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all 
 offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
 and the zoom.
 
-A frame is drawn one of two ways (``renderer``). ``'warp'`` (the default while the view
-or the attitude moves): up to the lens, a view pixel's ray in camera ``i`` is a
-homography, so each camera's part of the view -- a convex region bounded by eq. 6's
-great circles, straight lines in a rectilinear view -- is one ``cv2.warpPerspective`` of
-that camera's undistorted image plane, resampled from the mosaic through a fixed map
-built from the same lens code, once per frame set for all the views sharing it
-(:mod:`.view_warp`); nothing is rebuilt when the view moves. ``'map'``: the lookup (view
+A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): the first
+frame of a frame set (live video: every frame) straight from the camera images, one
+``cv2.remap`` per camera part with that camera's map interpolated from a coarse exact
+grid (:mod:`.view_grid`), and a frame set drawn again -- a view moving over it, or
+another view posed alike -- as ``'warp'``. ``'warp'``: up to the lens, a view pixel's
+ray in camera ``i`` is a homography, so each camera's part of the view -- a convex
+region bounded by eq. 6's great circles, straight lines in a rectilinear view -- is one
+``cv2.warpPerspective`` of that camera's undistorted image plane, resampled from the
+mosaic through a fixed map built from the same lens code, once per frame set for all
+the views sharing it (:mod:`.view_warp`). ``'map'``: the lookup (view
 pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast builder
 (:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
 interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
 error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
 against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
 map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
-lookup). A ``'warp'`` view that stays still for :data:`STILL_FRAMES_BEFORE_MAP` frames
+lookup). A ``'grid'`` or ``'warp'`` view still for :data:`STILL_FRAMES_BEFORE_MAP` frames
 builds its lookup and remaps from then on (a remap with a ready map is the cheapest
 frame). The view follows the attitude and its pose only when its rotation in the
 cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
@@ -57,6 +60,7 @@ from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.rig_projection import RigProjection, tilt_matrix
+from accelcal_ros.panorama.view_grid import CameraSources, GridMaps
 from accelcal_ros.panorama.view_warp import CameraPlanes, DEFAULT_PLANE_SCALE, WarpPlan
 import numpy as np
 from numpy.typing import ArrayLike
@@ -71,11 +75,13 @@ MIN_FOV_H_DEG = 0.5
 """Narrowest horizontal field of view accepted (an electronic zoom of ~100x)."""
 DEFAULT_VIEW_GAP_PX = 64
 """Black gap between the images of a views-only mosaic (:class:`ViewMosaic`)."""
-RENDERERS = ('warp', 'map')
-"""How :meth:`LevelledView.render` draws: a homography per camera (:mod:`.view_warp`,
-the default) or a ``cv2.remap`` of the lookup map (:meth:`LevelledView.lookup`)."""
+RENDERERS = ('grid', 'warp', 'map')
+"""How :meth:`LevelledView.render` draws: from the cameras by interpolated maps
+(:mod:`.view_grid`, the default; a frame set drawn again as ``'warp'``), a homography
+per camera (:mod:`.view_warp`) or a ``cv2.remap`` of the lookup map."""
 STILL_FRAMES_BEFORE_MAP = 3
-"""A ``'warp'`` view still for this many frames builds its lookup and remaps from then on."""
+"""A ``'grid'`` or ``'warp'`` view still for this many frames builds its lookup and remaps
+from then on."""
 COVERAGE_SAMPLES = 96
 """Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`."""
 
@@ -339,17 +345,19 @@ class LevelledView:
             mosaic.set_image(i, image)
         frame = view.render(mosaic.image, mosaic.version)  # owned by the view: copy to keep
 
-    ``renderer`` (:data:`RENDERERS`): ``'warp'`` draws each camera's part by a homography
-    from its undistorted plane (:mod:`.view_warp`; ``planes`` may be shared by the views
-    of one mosaic), ``'map'`` by one ``cv2.remap`` of the lookup. Bad values raise
-    :class:`InputError` and leave the view as it was.
+    ``renderer`` (:data:`RENDERERS`): ``'grid'`` draws a frame set's first frame from the
+    camera images (:mod:`.view_grid`; ``sources`` may be shared) and the rest as
+    ``'warp'``, by a homography per camera from its undistorted plane (:mod:`.view_warp`;
+    ``planes`` may be shared by the views of one mosaic); ``'map'`` by one ``cv2.remap``
+    of the lookup. Bad values raise :class:`InputError` and leave the view as it was.
     """
 
     def __init__(self, rig: Any, layout: MosaicLayout, width: int, height: int,
                  pose: Optional[ViewPose] = None, imu_to_camera: Optional[ArrayLike] = None,
                  grid_step: int = 16, tolerance_px: float = 0.1,
-                 rebuild_threshold_deg: float = 0.005, renderer: str = 'warp',
+                 rebuild_threshold_deg: float = 0.005, renderer: str = 'grid',
                  planes: Optional[CameraPlanes] = None,
+                 sources: Optional[CameraSources] = None,
                  plane_scale: float = DEFAULT_PLANE_SCALE) -> None:
         import cv2
 
@@ -366,6 +374,8 @@ class LevelledView:
         self.builder = ViewLookupBuilder(rig, self.width, self.height, layout, imu_to_camera,
                                          grid_step, tolerance_px)
         self.planes = planes
+        self.sources = sources
+        self.tolerance_px = float(tolerance_px)
         self.plane_scale = float(plane_scale)
         self.rebuild_threshold_deg = float(rebuild_threshold_deg)
         self.pose = pose if pose is not None else ViewPose()
@@ -373,6 +383,8 @@ class LevelledView:
         self._built: Optional[Tuple[np.ndarray, float]] = None  # (rotation, fov) of the map
         self._map: Optional[np.ndarray] = None
         self._plan: Optional[WarpPlan] = None
+        self._grid: Optional[GridMaps] = None
+        self._last_version: Any = None
         self._fixed: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._band = (0, 0)
         self._frames_on_map = 0
@@ -435,6 +447,7 @@ class LevelledView:
         self.builder.set_view(self.pose)
         self._map = None
         self._plan = None
+        self._grid = None
         if self.renderer == 'map':
             self._build_map()
         self._built = target
@@ -455,6 +468,20 @@ class LevelledView:
         if self.planes is None:
             self.planes = CameraPlanes(self.builder, self.plane_scale)
         return self.planes
+
+    def _planes_hold(self, version: Any) -> bool:
+        """Return True when this frame set is drawn again (its planes pay off from now)."""
+        if version is None:
+            return False
+        return version == self._last_version or (
+            self.planes is not None and self.planes.holds(version))
+
+    def shared_sources(self) -> CameraSources:
+        """Return the camera images the ``'grid'`` renderer reads (made on first use)."""
+        if self.sources is None:
+            self.sources = CameraSources(self.builder.layout,
+                                         [(c.width, c.height) for c in self.rig.cameras])
+        return self.sources
 
     def plan(self) -> WarpPlan:
         """Return the current :class:`~.view_warp.WarpPlan` (regions and homographies)."""
@@ -491,15 +518,27 @@ class LevelledView:
         if self._out is None or self._out.shape != shape:
             self._out = np.zeros(shape, np.uint8)
         self._frames_on_map += 1
-        if self.renderer == 'warp' and self._frames_on_map <= STILL_FRAMES_BEFORE_MAP:
+        if self.renderer != 'map' and self._frames_on_map <= STILL_FRAMES_BEFORE_MAP:
             plan = self.plan()
-            planes = self.shared_planes()
-            planes.prepare(mosaic, plan.needs, version)
             work = (self.height, self.width, 4) if len(shape) == 3 else shape
             if self._scratch is None or self._scratch.shape != work:
                 self._scratch = np.zeros(work, np.uint8)
                 self._canvas = np.zeros(work, np.uint8) if len(shape) == 3 else self._out
+            if self.renderer == 'grid' and not self._planes_hold(version):
+                if self._grid is None:
+                    assert self.attitude is not None
+                    g = self.builder._grid
+                    self._grid = GridMaps(plan, self.builder,
+                                          self.builder.camera_rotations(*self.attitude),
+                                          g.cx, g.cy, tolerance_px=self.tolerance_px)
+                self._grid.render(self.shared_sources(), mosaic, version, self._out,
+                                  self._canvas, self._scratch)
+                self._last_version = version
+                return self._out
+            planes = self.shared_planes()
+            planes.prepare(mosaic, plan.needs, version)
             plan.render(planes, self._out, self._canvas, self._scratch)
+            self._last_version = version
             return self._out
         if self._map is None:
             self._build_map()

@@ -19,6 +19,7 @@ from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.view import (check_view_size, LevelledView, ViewMosaic,
                                         ViewPose)
+from accelcal_ros.panorama.view_grid import CameraSources
 from accelcal_ros.panorama.view_warp import CameraPlanes
 import numpy as np
 from numpy.typing import ArrayLike
@@ -84,6 +85,7 @@ class ViewSet:
         self.rebuild_threshold_deg = rebuild_threshold_deg
         self.views: Dict[str, LevelledView] = {}
         self.planes: Optional[CameraPlanes] = None  # shared by the views (view_warp)
+        self.sources: Optional[CameraSources] = None  # shared by the views (view_grid)
         self._drawn: Dict[Any, LevelledView] = {}  # frames drawn from this frame set
         self._drawn_version: Any = None
         self.shared_frames = 0
@@ -110,8 +112,9 @@ class ViewSet:
             view = LevelledView(self.rig, self.mosaic.layout, size[0], size[1], pose,
                                 self.imu_to_camera, self.grid_step,
                                 rebuild_threshold_deg=self.rebuild_threshold_deg,
-                                planes=self.planes)
+                                planes=self.planes, sources=self.sources)
             self.planes = view.shared_planes()
+            self.sources = view.shared_sources()
             if self.attitude is not None:
                 view.set_attitude(*self.attitude)
             self.views[name] = view
@@ -188,9 +191,10 @@ class ViewSet:
         """
         Return ``view`` of the current frame set (its own buffer; hold :attr:`lock`).
 
-        The views share each camera's undistorted plane, resampled once per frame set,
-        and a view posed exactly as another one already drawn from this frame set
-        copies that frame instead of drawing it again (:attr:`shared_frames` counts).
+        The views share each camera's image as the direct renderer reads it and its
+        undistorted plane, each made once per frame set, and a view posed exactly as
+        another one already drawn from this frame set copies that frame instead of
+        drawing it again (:attr:`shared_frames` counts).
         """
         key = (self.mosaic.version, view.pose, view.attitude, view.width, view.height)
         if self._drawn_version != key[0]:

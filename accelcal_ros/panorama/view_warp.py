@@ -120,6 +120,11 @@ class CameraPlanes:
                  np.abs(py[1:, :-1] - py[:-1, :-1]) + np.abs(py[:-1, 1:] - py[:-1, :-1])]
         return 1.01 * max(float(step[both].max()) for step in steps)
 
+    def holds(self, version: Any) -> bool:
+        """Return True when some plane was resampled from the mosaic's ``version``."""
+        return version is not None and version == self._version and \
+            any(done is not None for done in self._done)
+
     def prepare(self, mosaic: np.ndarray, needs: Dict[int, Rect], version: Any = None) -> None:
         """
         Resample the rectangles ``needs`` (camera -> plane rectangle) from ``mosaic``.
@@ -180,6 +185,8 @@ class WarpPlan:
         shift = np.array([[1.0, 0.0, -cx], [0.0, 1.0, -cy], [0.0, 0.0, 1.0]])
         a = np.asarray(rotations, float) @ shift  # view pixel (u, v, 1) -> camera i
         self.width, self.height = width, height
+        self.rotations = a
+        """``A_i`` with the shift: view pixel ``(u, v, 1)`` -> camera ``i`` (n, 3, 3)."""
         # pieces: (camera, homography from the piece's origin, rectangle, the columns
         # to take within it per row (2, rows: first, last), or None for all of them)
         self.parts: List[Tuple[int, np.ndarray, Rect, Optional[np.ndarray]]] = []
@@ -199,6 +206,9 @@ class WarpPlan:
                             [-0.5, height - 0.5, 1.0], [width - 0.5, height - 0.5, 1.0]])
         keep = ~((lines @ corners.T) < 0).all(axis=2).any(axis=1)
         cams = np.nonzero(keep)[0]
+        first = np.full(height, width, np.int64)
+        last = np.full(height, -1, np.int64)
+        widths = np.zeros(height, np.int64)
         lines = lines[cams]
         v = np.arange(height, dtype=float)
         coef = lines[..., 0:1]
@@ -232,6 +242,9 @@ class WarpPlan:
             if need[2] <= need[0] or need[3] <= need[1]:
                 continue
             self.needs[i] = need
+            np.minimum(first[y0:y1], li, out=first[y0:y1])
+            np.maximum(last[y0:y1], hi_i, out=last[y0:y1])
+            widths[y0:y1] += hi_i - li + 1
             # per band of rows, the columns every row of the band holds are drawn
             # straight; the slivers left and right of them through a mask of the pixels
             # whose centres lie in the region (a slanted seam, a tapering corner)
@@ -249,6 +262,11 @@ class WarpPlan:
                 for s0, s1 in ((b0, inner0), (inner1, b1)):
                     if s1 > s0:
                         self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
+        short = (first > 0) | (last < width - 1) | (widths < width)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], short.view(np.int8), [0]])))
+        self.blank_rows = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+        """Runs of rows ``[r0, r1)`` some pixel of which no camera's region holds."""
+        self._masks: Dict[int, np.ndarray] = {}
         self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
             self.parts[0][2] == (0, 0, width, height)
 
@@ -267,6 +285,32 @@ class WarpPlan:
         self._piece(i, h, (s0, y0 + k0, s1, y0 + k1),
                     np.stack([a[k0:k1] - s0, b[k0:k1] - s0]))
 
+    def mask(self, k: int) -> np.ndarray:
+        """
+        Return the pixels of sliver part ``k`` in its region (uint8, 1 in it, else 0).
+
+        Drawn by ``cv2.fillPoly`` through each row's first and last column (integer
+        vertices on every row: exactly the rows' column ranges), cached with the plan.
+        """
+        import cv2
+
+        mask = self._masks.get(k)
+        if mask is None:
+            _, _, (x0, y0, x1, y1), poly = self.parts[k]
+            assert poly is not None
+            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            rows = np.arange(y1 - y0, dtype=np.int32)
+            edge = np.concatenate([np.stack([poly[0], rows], axis=1),
+                                   np.stack([poly[1], rows], axis=1)[::-1]])
+            cv2.fillPoly(mask, [edge.astype(np.int32)], 1)
+            self._masks[k] = mask
+        return mask
+
+    def blank(self, canvas: np.ndarray) -> None:
+        """Black out the rows of ``canvas`` some pixel of which no camera's region holds."""
+        for r0, r1 in self.blank_rows:
+            canvas[r0:r1] = 0
+
     def render(self, planes: CameraPlanes, out: np.ndarray, canvas: np.ndarray,
                scratch: np.ndarray) -> None:
         """
@@ -279,11 +323,9 @@ class WarpPlan:
         import cv2
 
         assert planes.images is not None
-        if not self.single:
-            canvas[...] = 0
+        self.blank(canvas)
         flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
-        ramp = np.arange(self.width)
-        for i, m, (x0, y0, x1, y1), poly in self.parts:
+        for k, (i, m, (x0, y0, x1, y1), poly) in enumerate(self.parts):
             src = planes.images[i]
             if poly is None:
                 cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=canvas[y0:y1, x0:x1],
@@ -293,8 +335,6 @@ class WarpPlan:
             part = scratch[y0:y1, x0:x1]
             cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), dst=part, flags=flags,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            columns = ramp[:x1 - x0]
-            mask = (columns >= poly[0][:, None]) & (columns <= poly[1][:, None])
-            cv2.copyTo(part, mask.view(np.uint8), canvas[y0:y1, x0:x1])
+            cv2.copyTo(part, self.mask(k), canvas[y0:y1, x0:x1])
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)
