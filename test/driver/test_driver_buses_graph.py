@@ -122,14 +122,21 @@ def test_sustainable_rate_is_achieved_without_loss(graph, bus, speed, rate, read
     # the driver: enough for the stamp statistics below (a second's worth) is asked
     assert len(msgs) >= rate, report
     stamps = np.sort([stamp(m) for m in msgs])
-    steps = np.diff(stamps) * rate
     # the period is the measured output data rate; where the host stalls often, the
     # measuring window restarts at each overrun and the estimate is off by a few 0.1 %
-    assert np.median(steps) == pytest.approx(1.0, rel=1e-2)
+    period_s = float(np.median(np.diff(stamps)))
+    assert period_s * rate == pytest.approx(1.0, rel=1e-2)
+    steps = np.diff(stamps) / period_s
     assert np.all(steps >= 0.49)
-    # gaps are whole sample periods (a message DDS did not deliver), never a shifted grid
-    # (except where an overrun restarted the stamp chain)
-    assert np.percentile(np.abs(steps - np.round(steps)), 95) < 0.1
+    # gaps are whole sample periods (a message DDS did not deliver), never a shifted grid:
+    # a step off the grid is one across a restart of the stamp chain (an overrun or a
+    # resync, each counted by the driver: on a loaded host there can be many), or one of
+    # the few (5 %, as before) the chain's period correction moves
+    off_grid = int(np.count_nonzero(np.abs(steps - np.round(steps)) >= 0.1))
+    restarts = delta('fifo_overruns') + (int(end.get('fifo_stamp_resyncs', 0))
+                                         - int(start.get('fifo_stamp_resyncs', 0)))
+    assert off_grid <= restarts + 0.05 * len(steps), \
+        f'{report}; {off_grid} of {len(steps)} steps off the grid, {restarts} restarts'
 
 
 def test_unsustainable_rate_runs_when_asked_and_reports_its_losses(graph):
