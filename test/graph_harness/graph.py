@@ -105,6 +105,7 @@ class Graph:
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
         self.processes = []
+        self._clients = {}
 
     def _spin(self):
         while not self._stop and self.context.ok():
@@ -124,45 +125,63 @@ class Graph:
         """
         Call a service (waiting for it to appear); returns the response.
 
-        ``resend_s``: for an idempotent service (parameters), send the request again when
-        no answer came within this many seconds. A server answers a new client only once it
-        has matched the client's reply reader, and it waits 100 ms for that (rmw_fastrtps'
-        send_response); a request sent just after the service appeared can lose its answer
-        while discovery is slow (a loaded machine). Never set it for a service that changes
-        state (start, capture, ...): a second request there is a second action.
+        A server answers a client only once it has matched the client's reply reader, and
+        it waits 100 ms for that (rmw_fastrtps' send_response): a request sent just after
+        a client was made can lose its answer while discovery is slow (a loaded machine).
+        (and a node started again under the same name meets the probe's clients anew). So:
+
+        - ``resend_s`` set (an idempotent service: parameters): the request is sent again
+          when no answer came within that many seconds;
+        - otherwise (a service that changes state: start, capture, ...; a second request
+          would be a second action) the request waits until the node has matched the
+          client (:meth:`_until_server_knows_client`).
+
+        Clients are kept for the graph's life (one per service: none is destroyed while the
+        probe's executor may still hold an answer for it).
         """
-        client = self.node.create_client(srv_type, name)
+        client = self._clients.get((srv_type, name))
+        fresh = client is None
+        if fresh:
+            client = self.node.create_client(srv_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise TimeoutError(f'service {name} did not appear in {timeout} s')
-            request = request if request is not None else srv_type.Request()
-            deadline = time.monotonic() + timeout
             if resend_s is None:
                 self._until_server_knows_client(name, timeout)
-            sends = 0
-            while True:
-                future = client.call_async(request)
-                sends += 1
-                resend_at = deadline if resend_s is None else time.monotonic() + resend_s
-                while not future.done() and time.monotonic() < min(deadline, resend_at):
-                    time.sleep(0.01)
-                if future.done():
-                    return future.result()
-                if time.monotonic() >= deadline:
-                    raise TimeoutError(f'service {name} did not answer in {timeout} s '
-                                       f'({sends} requests)')
-                client.remove_pending_request(future)
-        finally:
-            self.node.destroy_client(client)
+        except BaseException:
+            if fresh:
+                self.node.destroy_client(client)
+            raise
+        if fresh:
+            self._clients[(srv_type, name)] = client
+        return self._send(client, name, request if request is not None else srv_type.Request(),
+                          timeout, resend_s)
+
+    @staticmethod
+    def _send(client, name, request, timeout, resend_s):
+        """Send ``request`` (again every ``resend_s`` if set) until answered or ``timeout``."""
+        deadline = time.monotonic() + timeout
+        sends = 0
+        while True:
+            future = client.call_async(request)
+            sends += 1
+            resend_at = deadline if resend_s is None else time.monotonic() + resend_s
+            while not future.done() and time.monotonic() < min(deadline, resend_at):
+                time.sleep(0.01)
+            if future.done():
+                return future.result()
+            client.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f'service {name} did not answer in {timeout} s '
+                                   f'({sends} requests)')
 
     def _until_server_knows_client(self, name, timeout):
         """
-        Return once the node serving ``name`` has matched a client created before now.
+        Return once the node serving ``name`` has matched the probe's client of it.
 
-        A service that changes state cannot be sent twice, so before its one request the
-        node's own get_parameters (idempotent, sent again until answered) is called through
-        a client created after this one: the probe announces its endpoints to the node in
-        order on one reliable discovery channel, so the node's answer to the later client
+        The node's own get_parameters (idempotent, sent again until answered) is called
+        through a client made after that one: the probe announces its endpoints to the node
+        in order on one reliable discovery channel, so the node's answer to the later client
         shows it has matched the earlier one's reply reader too. Services outside a node's
         namespace (no ``<node>/get_parameters`` beside them) are sent as they are.
         """
@@ -175,8 +194,13 @@ class Graph:
         services = {n for n, _ in self.node.get_service_names_and_types()}
         if f'{node_name}/get_parameters' not in services:
             return
-        self.call(GetParameters, f'{node_name}/get_parameters', GetParameters.Request(),
-                  timeout, resend_s=5.0)
+        later = self.node.create_client(GetParameters, f'{node_name}/get_parameters')
+        try:
+            if later.wait_for_service(timeout_sec=timeout):
+                self._send(later, f'{node_name}/get_parameters', GetParameters.Request(),
+                           timeout, 5.0)
+        finally:
+            self.node.destroy_client(later)
 
     def set_parameters(self, node_name, values, timeout=30.0):
         """``ros2 param set``: returns the list of SetParametersResult."""
