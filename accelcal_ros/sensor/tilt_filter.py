@@ -56,26 +56,29 @@ low-passed over 0.1 s, beyond ``rejection_deg`` on body x (braking, pulling) or 
 turn's centripetal acceleration) stops the pull on that axis only (the other is pulled
 towards ``f / g_scale``); in a turn (rate about up beyond 9 deg/s, no odometry) a lever
 arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |`` above
-``accel_threshold_g`` stops both. Rejected for ``rejection_timeout_s``, or still for 3 s
-(1 s when odometry says stopped), the accelerometer is trusted again. **Vertical aid**
-while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates
-horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt at rest as
-the mean force along ``u``); its excess along the estimate measures the error along the
-horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`),
-which the filter corrects with that time constant, and its integral term too. The gyro
-bias ``b`` is learnt while the detector says still (with a mean corrected rate below
-0.01 rad/s once a bias is known), the accelerometer agrees within 0.5 deg and odometry,
-when given, says stopped: :class:`~accelcal_ros.sensor.gyro_bias.GyroBiasEstimator`
-(20 ms blocks a still window has passed; a line with a drift prior of
-``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``). Until 0.2 s of stillness
-have given a bias the output is the accelerometer-only estimate. At rest the direction
-is the Kalman update of the propagated one with each sample (the gyro keeps a growing
-average aligned), then the still average weighed by the two variances (the still
-average wins within a second; its line through the few samples after a stop does not).
-Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``,
-bias uncertainty ``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from
-stillness), then ``P = (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle
-variance), plus the squared low-passed innovation while the accelerometer is used.
+``accel_threshold_g`` stops both. The test sees an acceleration only once its low-passed
+innovation has grown past the limit: when an axis's rejection starts, the corrections
+made on it (pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``,
+exponential weight; none at rest) are taken back. Rejected for ``rejection_timeout_s``,
+or still for 3 s (1 s when odometry says stopped), the accelerometer is trusted again.
+**Vertical aid** while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle
+accelerates horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt
+at rest as the mean force along ``u``); its excess along the estimate measures the error
+along the horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias.
+horizontal_error`), corrected with that time constant (not fed to the bias: the road's
+vibration on it would reach the bias). The gyro bias ``b`` is learnt while the detector
+says still (mean corrected rate below 0.01 rad/s once a bias is known), the accelerometer
+agrees within 0.5 deg and odometry, if given, says stopped: :class:`~accelcal_ros.sensor.
+gyro_bias.GyroBiasEstimator` (20 ms blocks a still window has passed; a line with a drift
+prior ``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``). Until 0.2 s of
+stillness have given a bias the output is the accelerometer-only estimate. At rest the
+direction is the Kalman update of the propagated one with each sample, then the still
+average weighed by the two variances (it wins within a second; its line through the few
+samples after a stop does not). Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b
+dt)^2`` (gyro noise ``s_w``, bias uncertainty ``s_b`` growing by
+``gyro_bias_drift_rad_s2`` per second away from stillness), then ``P = (1 - k)^2 P + k^2
+R`` (``R``: the accelerometer's angle variance), plus the squared low-passed innovation
+while the accelerometer is used.
 
 Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``) are not used:
 the previous good rate is kept for up to 0.1 s, after which the filter falls back to the
@@ -91,44 +94,12 @@ from accelcal_ros.sensor.gyro_bias import GyroBiasEstimator, horizontal_error
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
-from accelcal_ros.sensor.tilt_settings import dema_variance_ratio, FilterSettings, low_pass_gain
-
-GYRO_HOLD_S = 0.1
-"""A bad or missing gyro sample is bridged with the last good rate for at most this (s)."""
-INNOVATION_TIME_CONSTANT_S = 0.1
-"""Low-pass of the innovation that the acceleration rejection tests (s)."""
-BIAS_MIN_BLOCKS = 10
-"""20 ms blocks of stillness needed before the gyro bias is known (0.2 s)."""
-MAX_GAP_S = 0.5
-"""A larger gap between samples restarts the gyro state (s)."""
-BIAS_INTEGRAL_TIME_CONSTANT_S = 5.0
-"""Moving, accelerometer trusted: the integral term's time constant, in units of the
-proportional one (``ki = dt / (this * tau^2)``)."""
-G_SCALE_TIME_CONSTANT_S = 60.0
-"""Memory of the specific force along "up" at rest (the 1 g the vertical aid expects)."""
-VERTICAL_AID_MIN_G = 0.03
-"""Horizontal acceleration below which the vertical aid tells nothing (g)."""
-VERTICAL_AID_FULL_G = 0.2
-"""Horizontal acceleration from which the vertical aid has its full gain (g); below, the
-gain falls with its square (the information it carries against vibration and noise)."""
-TURN_RATE_RAD_S = 0.16
-"""Rotation about "up" beyond this (9 deg/s) is a turn: a sensor 2 m from the rotation
-axis then feels 0.005 g of centripetal acceleration on any axis (0.3 deg), so the
-accelerometer is trusted on no axis (odometry, when given, removes it)."""
-BIAS_RATE_LIMIT_RAD_S = 0.01
-"""Stillness with a known bias: the mean corrected rate below this (0.57 deg/s). The
-detector's default (0.05 rad/s) lets a vehicle cruising over a changing grade (0.5 deg/s
-of pitch rate) pass as still, and its rate would be learnt as bias."""
-
-BIAS_INNOVATION_LIMIT_RAD = math.radians(0.5)
-"""The bias is learnt only while the accelerometer agrees with the gyro this well."""
-STILL_RECOVERY_S = 1.0
-"""Still (odometry: stopped) but rejecting this long: the estimate drifted during a long
-manoeuvre; the accelerometer is trusted again."""
-STILL_RECOVERY_UNAIDED_S = 3.0
-"""The same without odometry (a steady pull on a smooth road also looks still)."""
-STILL_RECOVERY_TIME_CONSTANT_S = 0.5
-"""Time constant of that recovery (s)."""
+from accelcal_ros.sensor.tilt_settings import (
+    BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
+    BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
+    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, STILL_RECOVERY_S,
+    STILL_RECOVERY_TIME_CONSTANT_S, STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S,
+    UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G, VERTICAL_AID_MIN_G)
 
 MODE_ACCEL = 'accelerometer only'
 MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it does not ' \
@@ -197,6 +168,8 @@ class AttitudeFilter:
         self._p = 0.0
         self._innovation = (0.0, 0.0, 0.0)
         self._reject_since: Optional[float] = None
+        self._recent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        self._rejected_x = self._rejected_y = False
         if not hasattr(self, '_g_scale'):
             self._g_scale = 1.0
             self._g_scale_n = 0
@@ -273,7 +246,7 @@ class AttitudeFilter:
             est.drift_rad_s2 = settings.gyro_bias_drift_rad_s2
             est.feed(stamp, gyro, detector.thresholds,
                      still and not self.rejecting and not platform_moving
-                     and self._innovation_norm() < BIAS_INNOVATION_LIMIT_RAD)
+                     and math.hypot(*self._innovation) < BIAS_INNOVATION_LIMIT_RAD)
         # the fast and the still averages (always: the fallback and the still output)
         a_fast = low_pass_gain(dt, settings.odometry_time_constant_s if aided_by_odometry
                                else settings.moving_time_constant_s)
@@ -320,10 +293,6 @@ class AttitudeFilter:
                                   still, out, shrink, aided_by_odometry, mode)
 
     # -- pieces ---------------------------------------------------------------------------
-    def _innovation_norm(self) -> float:
-        ix, iy, iz = self._innovation
-        return math.sqrt(ix * ix + iy * iy + iz * iz)
-
     def _gyro_of(self, stamp: float, gyro_rad_s: Optional[Sequence[float]]
                  ) -> Optional[Tuple[float, float, float]]:
         """Return a usable rate for this sample (bridging bad ones) or None."""
@@ -454,16 +423,17 @@ class AttitudeFilter:
         return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
                             accelerating, magnitude)
 
-    def _vertical_aid(self, dt, fx, fy, fz, vx, vy, vz):
-        """Return ``v`` corrected along the horizontal acceleration (horizontal_error)."""
-        tau = self.settings.vertical_aid_time_constant_s
-        found = horizontal_error(fx, fy, fz, vx, vy, vz, self._g_scale, VERTICAL_AID_MIN_G,
-                                 VERTICAL_AID_FULL_G)
-        if found is None:
-            return vx, vy, vz
-        ex, ey, ez, weight = found
-        k = low_pass_gain(dt, tau) * weight
-        return vx + k * ex, vy + k * ey, vz + k * ez
+    def _undo_onset(self, new_x, new_y, both, vx, vy, vz):
+        """Take back the recent corrections on the axes whose rejection starts now."""
+        r, b, v = self._recent, list(self._bias_est.bias), [vx, vy, vz]
+        # body x (pitch) is corrected through the bias about y, body y (roll) about x
+        for on, k, j in ((new_x, 0, 4), (new_y, 1, 3), (both, 2, 5)):
+            if on:
+                v[k] -= r[k]
+                b[j - 3] -= r[j]
+                r[k] = r[j] = 0.0
+        self._bias_est.adjust((b[0], b[1], b[2]))
+        return v[0], v[1], v[2]
 
     def _gyro_update(self, stamp, dt, gyro, force, magnitude, accelerating,
                      aided_by_odometry, out, shrink, platform_moving, still):
@@ -485,6 +455,8 @@ class AttitudeFilter:
             self._p = r_var * shrink
             self._innovation = (0.0, 0.0, 0.0)
             self._reject_since = None
+            self._recent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            self._rejected_x = self._rejected_y = False
         else:
             b = self._bias_est.bias
             wx, wy, wz = gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]
@@ -521,6 +493,13 @@ class AttitudeFilter:
                         if self.detector.still else 0.0
             else:
                 self._reject_since = None
+            rx, ry = reject or reject_x, reject or reject_y
+            if (rx and not self._rejected_x) or (ry and not self._rejected_y):
+                vx, vy, vz = self._undo_onset(rx and not self._rejected_x,
+                                              ry and not self._rejected_y, rx and ry,
+                                              vx, vy, vz)
+            self._rejected_x = rx
+            self._rejected_y = ry
             self._up_n += 1
             k = 0.0 if reject else max(low_pass_gain(dt, settings.gyro_time_constant_s), k_fast,
                                        1.0 / self._up_n if self._up_n < 100 else 0.0)
@@ -547,14 +526,23 @@ class AttitudeFilter:
                 cx, cy, cz = jy * vz - jz * vy, jz * vx - jx * vz, jx * vy - jy * vx
                 b = self._bias_est.bias
                 self._bias_est.adjust((b[0] - ki * cx, b[1] - ki * cy, b[2] - ki * cz))
+                r = self._recent
+                r[3] -= ki * cx
+                r[4] -= ki * cy
+                r[5] -= ki * cz
             if kx == ky:
-                vx, vy, vz = vx + k * ex, vy + k * ey, vz + k * ez
+                dx, dy, dz = k * ex, k * ey, k * ez
             else:
-                vx, vy = vx + kx * ex, vy + ky * ey
+                dx, dy, dz = kx * ex, ky * ey, 0.0
+            vx, vy, vz = vx + dx, vy + dy, vz + dz
             k = min(kx, ky)
             reject = reject or reject_x or reject_y
             if reject and settings.vertical_aid_time_constant_s > 0.0:
-                vx, vy, vz = self._vertical_aid(dt, fx, fy, fz, vx, vy, vz)
+                found = horizontal_error(fx, fy, fz, vx, vy, vz, self._g_scale,
+                                         VERTICAL_AID_MIN_G, VERTICAL_AID_FULL_G)
+                if found is not None:   # v corrected along the horizontal acceleration
+                    ka = low_pass_gain(dt, settings.vertical_aid_time_constant_s) * found[3]
+                    vx, vy, vz = vx + ka * found[0], vy + ka * found[1], vz + ka * found[2]
             est = self._bias_est
             drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - est.time)
             s_b = math.sqrt(est.variance) + drift
@@ -577,6 +565,17 @@ class AttitudeFilter:
                               vz + kb * (sz * inv - vz))
                 self._p = (1.0 - kb) * p_now
                 k = 1.0
+                self._recent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]   # at rest: nothing to take back
+            else:
+                # the corrections of the last UNDO_TIME_CONSTANT_S (the vertical aid's aside)
+                r = self._recent
+                keep = max(0.0, 1.0 - dt / UNDO_TIME_CONSTANT_S)   # exp(-dt / tau), dt << tau
+                r[0] = r[0] * keep + dx
+                r[1] = r[1] * keep + dy
+                r[2] = r[2] * keep + dz
+                r[3] *= keep
+                r[4] *= keep
+                r[5] *= keep
             norm = math.sqrt(vx * vx + vy * vy + vz * vz)
             self._up = (vx / norm, vy / norm, vz / norm)
             if k < 1.0:

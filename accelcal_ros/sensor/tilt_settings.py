@@ -64,6 +64,47 @@ class FilterSettings:
                              f'{self.platform_accel_g!r}')
 
 
+# -- fixed constants of the gyro path (AttitudeFilter) ------------------------------------
+GYRO_HOLD_S = 0.1
+"""A bad or missing gyro sample is bridged with the last good rate for at most this (s)."""
+INNOVATION_TIME_CONSTANT_S = 0.1
+"""Low-pass of the innovation that the acceleration rejection tests (s)."""
+BIAS_MIN_BLOCKS = 10
+"""20 ms blocks of stillness needed before the gyro bias is known (0.2 s)."""
+MAX_GAP_S = 0.5
+"""A larger gap between samples restarts the gyro state (s)."""
+BIAS_INTEGRAL_TIME_CONSTANT_S = 5.0
+"""Moving, accelerometer trusted: the integral term's time constant, in units of the
+proportional one (``ki = dt / (this * tau^2)``)."""
+G_SCALE_TIME_CONSTANT_S = 60.0
+"""Memory of the specific force along "up" at rest (the 1 g the vertical aid expects)."""
+VERTICAL_AID_MIN_G = 0.03
+"""Horizontal acceleration below which the vertical aid tells nothing (g)."""
+VERTICAL_AID_FULL_G = 0.2
+"""Horizontal acceleration from which the vertical aid has its full gain (g); below, the
+gain falls with its square (the information it carries against vibration and noise)."""
+TURN_RATE_RAD_S = 0.16
+"""Rotation about "up" beyond this (9 deg/s) is a turn: a sensor 2 m from the rotation
+axis then feels 0.005 g of centripetal acceleration on any axis (0.3 deg), so the
+accelerometer is trusted on no axis (odometry, when given, removes it)."""
+BIAS_RATE_LIMIT_RAD_S = 0.01
+"""Stillness with a known bias: the mean corrected rate below this (0.57 deg/s). The
+detector's default (0.05 rad/s) lets a vehicle cruising over a changing grade (0.5 deg/s
+of pitch rate) pass as still, and its rate would be learnt as bias."""
+
+BIAS_INNOVATION_LIMIT_RAD = math.radians(0.5)
+"""The bias is learnt only while the accelerometer agrees with the gyro this well."""
+UNDO_TIME_CONSTANT_S = 0.5
+"""Corrections this recent (exponential weight, s) are taken back when a rejection starts."""
+STILL_RECOVERY_S = 1.0
+"""Still (odometry: stopped) but rejecting this long: the estimate drifted during a long
+manoeuvre; the accelerometer is trusted again."""
+STILL_RECOVERY_UNAIDED_S = 3.0
+"""The same without odometry (a steady pull on a smooth road also looks still)."""
+STILL_RECOVERY_TIME_CONSTANT_S = 0.5
+"""Time constant of that recovery (s)."""
+
+
 def low_pass_gain(dt: float, tau: float) -> float:
     """Return the gain ``1 - exp(-dt / tau)`` of a first-order low-pass (0 if ``dt`` <= 0)."""
     return 1.0 - math.exp(-dt / tau) if dt > 0.0 else 0.0

@@ -1,7 +1,7 @@
 """Issue 20's targets through the simulated drive, on several seeds and at 100 and 800 Hz.
 
 Spread over seeds 0-7 at 100 / 800 Hz (README "Attitude at rest and in motion"): gyro
-p95 0.25-0.35 / 0.22-0.44 deg, max <= 0.64; odometry p95 0.35-0.41, max <= 0.91; both
+p95 0.24-0.31 / 0.18-0.39 deg, max <= 0.64; odometry p95 0.35-0.41, max <= 0.91; both
 p95 0.12-0.33, max <= 0.42.
 """
 import math
@@ -18,7 +18,10 @@ TARGET_ODOMETRY_P95_DEG = 1.0
 """Odometry only: p95 <= 1 deg (issue 20)."""
 TARGET_GYRO_P95_DEG = 0.3
 """With a gyro: p95 <= 0.3 deg (issue 20); met by gyro + odometry, by the gyro alone on
-about half of the seeds (the README gives the spread)."""
+most seeds (the README gives the spread)."""
+GYRO_ALONE_P95_DEG = 0.4
+"""The gyro alone on the seeds below: p95 0.22-0.35 deg (0.31 and 0.35 on 100 Hz seed 1
+and 800 Hz seed 3); what the filter achieves, with a margin."""
 
 
 @pytest.mark.parametrize('rate, seed', [(100.0, 0), (100.0, 1), (100.0, 2), (800.0, 0),
@@ -41,8 +44,8 @@ def test_drive_targets_per_aid(rate, seed):
     # both aids: the gyro target, and no worse than the gyro alone
     assert both['p95_deg'] <= TARGET_GYRO_P95_DEG
     assert both['p95_deg'] <= gyro['p95_deg']
-    # the gyro alone: within twice its target on every seed (the spread: README)
-    assert gyro['p95_deg'] <= 2.0 * TARGET_GYRO_P95_DEG
+    # the gyro alone: near its target on every seed (the spread: README)
+    assert gyro['p95_deg'] <= GYRO_ALONE_P95_DEG
 
 
 def test_gyro_bias_constant_is_averaged_and_drift_is_followed():

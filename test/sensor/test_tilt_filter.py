@@ -4,6 +4,7 @@ import math
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import specific_force_from_roll_pitch
+from accelcal_ros.sensor import tilt_filter
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.drive_sim import simulate_drive
 from accelcal_ros.sensor.model import SensorModel
@@ -146,6 +147,33 @@ def test_gyro_path_at_rest_keeps_static_accuracy():
                       for e, r, p, k in zip(est, roll, pitch, late) if k])
     assert np.percentile(err, 95) < 0.05
     assert _frame_jitter_px(t, est) <= 0.5
+
+
+def _pull_away(rate):
+    """Pitch error (deg) and y bias (rad/s) left once a 0.3 g pull-away is rejected."""
+    filt = AttitudeFilter(settings=FilterSettings(vertical_aid_time_constant_s=0.0))
+    errors = []
+    for t in np.arange(0.0, 7.0, 1.0 / rate).tolist():
+        w = min(max(t - 5.0, 0.0), 1.0)   # level, no rotation; from 5 s a 1 s smooth step
+        a = 0.3 * w * w * (3.0 - 2.0 * w)
+        vibration = 0.03 * math.sin(2 * math.pi * 12.0 * t) if t >= 3.0 else 0.0   # moving
+        est = filt.update(t, (a, 0.0, 1.0 + vibration), (0.0, 0.0, 0.0))
+        if t >= 6.0:
+            assert filt.rejecting
+            errors.append(abs(math.degrees(est.pitch)))
+    return max(errors), abs(filt.gyro_bias_rad_s[1])
+
+
+@pytest.mark.parametrize('rate', [100.0, 800.0])
+def test_the_onset_of_an_acceleration_is_taken_back_when_it_is_rejected(rate, monkeypatch):
+    # before the low-passed innovation passes rejection_deg the pull follows the
+    # acceleration (0.08 deg here, and the integral term learns it as a bias)
+    error, bias = _pull_away(rate)
+    monkeypatch.setattr(tilt_filter, 'UNDO_TIME_CONSTANT_S', 1e-9)   # nothing taken back
+    error_kept, bias_kept = _pull_away(rate)
+    assert error_kept > 0.05
+    assert error < 0.25 * error_kept
+    assert bias < 0.25 * bias_kept
 
 
 def test_bad_gyro_samples_are_bridged_then_dropped_with_a_reason():
