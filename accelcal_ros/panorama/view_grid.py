@@ -25,7 +25,7 @@ smooth function of the view pixel (the camera's homography, then its lens):
 Per pose: the plan and the coarse maps (the part that moves with the view); per frame
 set: the 4-channel camera images; per frame: the remaps.
 """
-from typing import Any, cast, Dict, List, Tuple
+from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
 from accelcal_ros.panorama.view_warp import Rect, WarpPlan
@@ -35,6 +35,9 @@ GRID_STEP_PX = 16
 """View pixels between the exactly evaluated nodes of a camera's map (halved, twice at
 most, while the error at the cells' centres exceeds :data:`CHECK_FRACTION` of the
 tolerance)."""
+FAR = -1.0e8
+"""A map node no pixel may read from: a pixel with any weight on it (at least
+``1 / (2 s)^2`` at node spacing ``s``) lands far outside the mosaic."""
 CHECK_FRACTION = 0.75
 """Share of ``tolerance_px`` the error at a cell's centre may reach (as the lookup's)."""
 
@@ -53,7 +56,7 @@ class CameraSources:
         self.offsets = [(int(x), int(y)) for x, y in layout.offsets]
         self.sizes = sizes
         self._done: Dict[int, Rect] = {}
-        self._buffers: Dict[int, np.ndarray] = {}
+        self._buffer: Optional[np.ndarray] = None
         self._version: Any = object()
 
     def get(self, mosaic: np.ndarray, i: int, rect: Rect, version: Any = None) -> np.ndarray:
@@ -67,9 +70,7 @@ class CameraSources:
         if version is None or version != self._version:
             self._done.clear()
             self._version = object() if version is None else version
-        buffer = self._buffers.get(i)
-        if buffer is None or buffer.shape != (h, w, 4):
-            buffer = self._buffers[i] = np.empty((h, w, 4), np.uint8)
+        buffer = self.image(mosaic)[y0:y0 + h, x0:x0 + w]
         done = self._done.get(i)
         if done is None:
             parts, done = [rect], rect
@@ -85,45 +86,77 @@ class CameraSources:
         self._done[i] = done
         return buffer
 
+    def image(self, mosaic: np.ndarray) -> np.ndarray:
+        """
+        Return the whole mosaic as the remaps read it (4 channels for colour, else itself).
+
+        Of a colour mosaic only what :meth:`get` converted is current; the gaps stay black.
+        """
+        if not (mosaic.ndim == 3 and mosaic.shape[2] == 3):
+            return mosaic
+        shape = mosaic.shape[:2] + (4,)
+        if self._buffer is None or self._buffer.shape != shape:
+            self._buffer = np.zeros(shape, np.uint8)
+            self._done.clear()
+        return self._buffer
+
 
 class GridMaps:
     """
-    Each camera's map over its part of one pose's view (view pixel -> camera pixel).
+    One map over one pose's view (view pixel -> mosaic pixel), each camera's part in it.
 
     ``plan`` is the pose's :class:`~.view_warp.WarpPlan`, ``projection`` the view's
     builder (:class:`~.rig_projection.RigProjection`) and ``rotations`` its camera
     rotations ``A_i`` (view pixel offsets -> camera ``i``) with the view's centre
-    ``(cx, cy)``.
+    ``(cx, cy)``. Each camera's interpolated map is copied into :attr:`map` through the
+    mask of its region; the rows no camera fully holds are first set to ``OUTSIDE``.
     """
 
     def __init__(self, plan: WarpPlan, projection: Any, rotations: np.ndarray, cx: float,
                  cy: float, step: int = GRID_STEP_PX, tolerance_px: float = 0.1) -> None:
+        import cv2
+
         self.plan = plan
         self.worst_px = 0.0
         """The largest interpolation error found at the cells' centres (camera pixels)."""
-        self.maps: Dict[int, Tuple[np.ndarray, int, int]] = {}  # camera: (map, x0, y0)
+        self.map = np.empty((plan.height, plan.width, 2), np.float32)
+        """View pixel -> mosaic pixel (float32, ``OUTSIDE`` where no camera is)."""
         self.rects: Dict[int, Rect] = {}  # camera: the pixels its map reaches
-        boxes: Dict[int, List[int]] = {}
-        for i, _, (x0, y0, x1, y1), _ in plan.parts:
-            box = boxes.setdefault(i, [x0, y0, x1, y1])
-            box[:] = [min(box[0], x0), min(box[1], y0), max(box[2], x1), max(box[3], y1)]
-        for i, box in boxes.items():
+        for r0, r1 in plan.blank_rows:
+            self.map[r0:r1] = OUTSIDE
+        layout = projection.layout
+        for i, (y0, lo, hi) in plan.regions.items():
+            box = (int(lo.min()), y0, int(hi.max()) + 1, y0 + len(lo))
             for s in (step, step // 2, step // 4):
-                fine, ox, oy, error, rect = self._camera_map(projection, rotations, i, box,
-                                                             cx, cy, max(2, s))
+                s = max(2, s)
+                coarse, error, rect = self._camera_map(projection, rotations, i, box, cx, cy,
+                                                       s, layout)
                 if error <= CHECK_FRACTION * tolerance_px:
                     break
-            self.maps[i] = (fine, ox, oy)
             self.rects[i] = rect
             self.worst_px = max(self.worst_px, error)
+            ny, nx = coarse.shape[:2]
+            fine = cv2.resize(coarse, (nx * s, ny * s), interpolation=cv2.INTER_LINEAR)
+            ox, oy = box[0] - s // 2, box[1] - s // 2
+            x0, x1, y1 = box[0], box[2], box[3]
+            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            rows = np.arange(y1 - y0, dtype=np.int32)
+            edge = np.concatenate([np.stack([lo - x0, rows], axis=1),
+                                   np.stack([hi - x0, rows], axis=1)[::-1]])
+            cv2.fillPoly(mask, [edge.astype(np.int32)], 1)
+            cv2.copyTo(fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox], mask, self.map[y0:y1, x0:x1])
 
     @staticmethod
-    def _camera_map(projection: Any, rotations: np.ndarray, i: int, box: List[int],
-                    cx: float, cy: float, step: int
-                    ) -> Tuple[np.ndarray, int, int, float, Rect]:
-        """Return camera ``i``'s map over ``box`` at node spacing ``step``, its origin, error."""
-        import cv2
+    def _camera_map(projection: Any, rotations: np.ndarray, i: int, box: Rect, cx: float,
+                    cy: float, step: int, layout: Any) -> Tuple[np.ndarray, float, Rect]:
+        """
+        Return camera ``i``'s coarse map over ``box`` (mosaic pixels), its error and reach.
 
+        Nodes at spacing ``step``; a node the lens cannot take (behind the camera, past
+        its validity limit) or one mapped beyond the gap around the camera's image holds
+        :data:`FAR`: every pixel of its cells then lands outside the mosaic (black), never
+        on a neighbour's image.
+        """
         x0, y0, x1, y1 = box
         nx = -(-(x1 - x0 + step) // step)
         ny = -(-(y1 - y0 + step) // step)
@@ -141,8 +174,6 @@ class GridMaps:
         rays[2] = 1.0
         _, px, py, side = projection._evaluate_soa(rays, rotations, only=i)
         bad = (side & 16) != 0
-        px[bad] = OUTSIDE
-        py[bad] = OUTSIDE
         coarse = np.stack([px[:nodes], py[:nodes]], axis=-1).reshape(ny, nx, 2)
         centre = np.stack([px[nodes:], py[nodes:]], axis=-1).reshape(ny - 1, nx - 1, 2)
         mean = 0.25 * (coarse[:-1, :-1] + coarse[1:, :-1] + coarse[:-1, 1:] + coarse[1:, 1:])
@@ -160,28 +191,25 @@ class GridMaps:
                     max(0, min(h, int(np.floor(ys.max())) + 2)))
         else:
             rect = (0, 0, 0, 0)
-        fine = cv2.resize(coarse, (nx * step, ny * step), interpolation=cv2.INTER_LINEAR)
-        return fine, x0 - step // 2, y0 - step // 2, error, rect
+        # beyond the gap (less a tap) a pixel would read a neighbour's image: such a
+        # node is far out; the pixels of its cells lie beyond the frame by more than the
+        # bilinear taps reach (a cell spanning fewer camera pixels than the gap), black
+        # in the camera's own image as well
+        reach = layout.gap - 2.0
+        beyond = (coarse[..., 0] < -reach) | (coarse[..., 0] > w - 1 + reach) | \
+            (coarse[..., 1] < -reach) | (coarse[..., 1] > h - 1 + reach)
+        coarse += np.asarray(layout.offsets[i], np.float32)
+        coarse[b | beyond] = FAR
+        return coarse, error, rect
 
     def render(self, sources: CameraSources, mosaic: np.ndarray, version: Any,
                out: np.ndarray, canvas: np.ndarray, scratch: np.ndarray) -> None:
-        """Fill ``out`` from the cameras' images (``canvas``/``scratch`` as the warp's)."""
+        """Fill ``out`` from the cameras' images by one remap (``canvas`` as the warp's)."""
         import cv2
 
-        plan = self.plan
-        plan.blank(canvas)
-        images = {i: sources.get(mosaic, i, rect, version) for i, rect in self.rects.items()}
-        for k, (i, _, (x0, y0, x1, y1), poly) in enumerate(plan.parts):
-            src = images[i]
-            fine, ox, oy = self.maps[i]
-            m = fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
-            if poly is None:
-                cv2.remap(src, m, cast(Any, None), cv2.INTER_LINEAR, dst=canvas[y0:y1, x0:x1],
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-                continue
-            part = scratch[y0:y1, x0:x1]
-            cv2.remap(src, m, cast(Any, None), cv2.INTER_LINEAR, dst=part,
-                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            cv2.copyTo(part, plan.mask(k), canvas[y0:y1, x0:x1])
+        for i, rect in self.rects.items():
+            sources.get(mosaic, i, rect, version)
+        cv2.remap(sources.image(mosaic), self.map, cast(Any, None), cv2.INTER_LINEAR,
+                  dst=canvas, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)

@@ -42,6 +42,8 @@ Rect = Tuple[int, int, int, int]
 BAND_ROWS = 240
 """A camera's part of a view is drawn in bands of about this many rows (each band's
 straight rectangle as wide as its rows allow; the rest through a mask)."""
+Part = Tuple[int, np.ndarray, Rect, Optional[np.ndarray]]
+"""A piece of a view: camera, homography, rectangle, per row columns (or None: all)."""
 DEFAULT_PLANE_SCALE = 1.5
 """Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
 
@@ -187,10 +189,11 @@ class WarpPlan:
         self.width, self.height = width, height
         self.rotations = a
         """``A_i`` with the shift: view pixel ``(u, v, 1)`` -> camera ``i`` (n, 3, 3)."""
-        # pieces: (camera, homography from the piece's origin, rectangle, the columns
-        # to take within it per row (2, rows: first, last), or None for all of them)
-        self.parts: List[Tuple[int, np.ndarray, Rect, Optional[np.ndarray]]] = []
+        self._parts: Optional[List[Part]] = None
         self.needs: Dict[int, Rect] = {}
+        self.regions: Dict[int, Tuple[int, np.ndarray, np.ndarray]] = {}
+        """Camera ``i``'s region: first row ``y0`` and per row its first and last column."""
+        self.homographies: Dict[int, np.ndarray] = {}  # camera: view pixel -> plane pixel
         z = a[:, 2]
         ext = np.asarray(planes.extents)  # (n, 4): x0, x1, y0, y1
         front = z.copy()
@@ -242,37 +245,54 @@ class WarpPlan:
             if need[2] <= need[0] or need[3] <= need[1]:
                 continue
             self.needs[i] = need
+            self.regions[i] = (y0, li, hi_i)
+            self.homographies[i] = h
             np.minimum(first[y0:y1], li, out=first[y0:y1])
             np.maximum(last[y0:y1], hi_i, out=last[y0:y1])
             widths[y0:y1] += hi_i - li + 1
-            # per band of rows, the columns every row of the band holds are drawn
-            # straight; the slivers left and right of them through a mask of the pixels
-            # whose centres lie in the region (a slanted seam, a tapering corner)
-            count = y1 - y0
-            step = count if count <= 2 * BAND_ROWS else -(-count // -(-count // BAND_ROWS))
-            for r0 in range(0, count, step):
-                r1 = min(count, r0 + step)
-                bl, bh = li[r0:r1], hi_i[r0:r1]
-                b0, b1 = int(bl.min()), int(bh.max()) + 1
-                inner0, inner1 = int(bl.max()), int(bh.min()) + 1
-                if inner1 <= inner0:
-                    inner0 = inner1 = b0
-                else:
-                    self._piece(i, h, (inner0, y0 + r0, inner1, y0 + r1), None)
-                for s0, s1 in ((b0, inner0), (inner1, b1)):
-                    if s1 > s0:
-                        self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
         short = (first > 0) | (last < width - 1) | (widths < width)
         edges = np.flatnonzero(np.diff(np.concatenate([[0], short.view(np.int8), [0]])))
         self.blank_rows = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
         """Runs of rows ``[r0, r1)`` some pixel of which no camera's region holds."""
         self._masks: Dict[int, np.ndarray] = {}
-        self.single = len(self.parts) == 1 and self.parts[0][3] is None and \
-            self.parts[0][2] == (0, 0, width, height)
+
+    @property
+    def parts(self) -> List[Part]:
+        """
+        Return the pieces to draw (:data:`Part`), made on first use.
+
+        Each: ``(camera, homography from the piece's origin, rectangle, the columns to
+        take within it per row (2, rows: first, last) or None for all of them)``. Made
+        on first use (the ``'grid'`` renderer needs only :attr:`regions`).
+        """
+        if self._parts is None:
+            self._parts = []
+            for i, (y0, li, hi_i) in self.regions.items():
+                h = self.homographies[i]
+                y1 = y0 + len(li)
+                # per band of rows, the columns every row of the band holds are drawn
+                # straight; the slivers left and right of them through a mask of the pixels
+                # whose centres lie in the region (a slanted seam, a tapering corner)
+                count = y1 - y0
+                step = count if count <= 2 * BAND_ROWS else -(-count // -(-count // BAND_ROWS))
+                for r0 in range(0, count, step):
+                    r1 = min(count, r0 + step)
+                    bl, bh = li[r0:r1], hi_i[r0:r1]
+                    b0, b1 = int(bl.min()), int(bh.max()) + 1
+                    inner0, inner1 = int(bl.max()), int(bh.min()) + 1
+                    if inner1 <= inner0:
+                        inner0 = inner1 = b0
+                    else:
+                        self._piece(i, h, (inner0, y0 + r0, inner1, y0 + r1), None)
+                    for s0, s1 in ((b0, inner0), (inner1, b1)):
+                        if s1 > s0:
+                            self._sliver(i, h, s0, s1, y0 + r0, bl, bh)
+        return self._parts
 
     def _piece(self, i: int, h: np.ndarray, rect: Rect, columns: Optional[np.ndarray]) -> None:
         m = h @ np.array([[1.0, 0.0, rect[0]], [0.0, 1.0, rect[1]], [0.0, 0.0, 1.0]])
-        self.parts.append((i, m, rect, columns))
+        assert self._parts is not None
+        self._parts.append((i, m, rect, columns))
 
     def _sliver(self, i: int, h: np.ndarray, s0: int, s1: int, y0: int, lo: np.ndarray,
                 hi: np.ndarray) -> None:
