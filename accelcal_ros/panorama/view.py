@@ -31,7 +31,7 @@ and the zoom.
 
 A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): the first
 frame of a frame set (live video: every frame) straight from the camera images, one
-``cv2.remap`` per camera part with that camera's map interpolated from a coarse exact
+``cv2.remap`` through a map made of each camera's map interpolated from a coarse exact
 grid (:mod:`.view_grid`), and a frame set drawn again -- a view moving over it, or
 another view posed alike -- as ``'warp'``. ``'warp'``: up to the lens, a view pixel's
 ray in camera ``i`` is a homography, so each camera's part of the view -- a convex
