@@ -60,7 +60,8 @@ arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |``
 innovation has grown past the limit: when an axis's rejection starts, the corrections
 made on it (pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``,
 exponential weight; none at rest) are taken back. Rejected for ``rejection_timeout_s``,
-or still for 3 s (1 s when odometry says stopped), the accelerometer is trusted again.
+or for 3 s (1 s when odometry says stopped) and still for 1 s with a still average within
+0.003 g of 1 g in magnitude (a steady pull is not), the accelerometer is trusted again.
 **Vertical aid** while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle
 accelerates horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt
 at rest as the mean force along ``u``); its excess along the estimate measures the error
@@ -97,9 +98,10 @@ from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
 from accelcal_ros.sensor.tilt_settings import (
     BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
     BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
-    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, STILL_RECOVERY_S,
-    STILL_RECOVERY_TIME_CONSTANT_S, STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S,
-    UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G, VERTICAL_AID_MIN_G)
+    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, RECOVERY_FORCE_G,
+    RECOVERY_STILL_S, STILL_RECOVERY_S, STILL_RECOVERY_TIME_CONSTANT_S,
+    STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S, UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G,
+    VERTICAL_AID_MIN_G)
 
 MODE_ACCEL = 'accelerometer only'
 MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it does not ' \
@@ -168,6 +170,7 @@ class AttitudeFilter:
         self._p = 0.0
         self._innovation = (0.0, 0.0, 0.0)
         self._reject_since: Optional[float] = None
+        self._moved_at = -math.inf
         self._recent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         self._rejected_x = self._rejected_y = False
         if not hasattr(self, '_g_scale'):
@@ -240,6 +243,7 @@ class AttitudeFilter:
         else:
             detector.add(stamp, (fx, fy, fz))
         still = detector.still
+        self._moved_at = self._moved_at if still else stamp
         if gyro is not None:   # not while the accelerometer disagrees: a steady pull
             est = self._bias_est
             est.memory_s = settings.bias_time_constant_s
@@ -486,7 +490,8 @@ class AttitudeFilter:
                 still_for = STILL_RECOVERY_S if platform_moving is False \
                     else STILL_RECOVERY_UNAIDED_S
                 if stamp - since > settings.rejection_timeout_s or (
-                        self.detector.still and stamp - since > still_for):
+                        stamp - since > still_for and stamp - self._moved_at >= RECOVERY_STILL_S
+                        and abs(math.hypot(*out) - self._g_scale) < RECOVERY_FORCE_G):
                     # trusted again: fast while still (stopped after a drift)
                     reject = reject_x = reject_y = False
                     k_fast = low_pass_gain(dt, STILL_RECOVERY_TIME_CONSTANT_S) \

@@ -101,6 +101,13 @@ STILL_RECOVERY_S = 1.0
 manoeuvre; the accelerometer is trusted again."""
 STILL_RECOVERY_UNAIDED_S = 3.0
 """The same without odometry (a steady pull on a smooth road also looks still)."""
+RECOVERY_STILL_S = 1.0
+"""That recovery needs this long a stillness (s; the detector's ``min_still_s``): a steady
+pull passes the detector now and then for a block or two."""
+RECOVERY_FORCE_G = 0.003
+"""And the still average's magnitude within this of the 1 g at rest (g): a steady pull of
+``a`` g on a smooth road passes the detector for seconds, but ``|f| = sqrt(1 + a^2)``
+(0.1 g: 0.005 g over; the average's noise over 1 s: 0.0004 g)."""
 STILL_RECOVERY_TIME_CONSTANT_S = 0.5
 """Time constant of that recovery (s)."""
 

@@ -21,11 +21,14 @@ TARGET_GYRO_P95_DEG = 0.3
 most seeds (the README gives the spread)."""
 GYRO_ALONE_P95_DEG = 0.4
 """The gyro alone on the seeds below: p95 0.22-0.35 deg (0.31 and 0.35 on 100 Hz seed 1
-and 800 Hz seed 3); what the filter achieves, with a margin."""
+and 800 Hz seed 3); what the filter achieves, with a margin. Seed 30 (0.24 / 0.29 deg):
+its pull away passed the stillness detector for one block 3 s into the rejection, and the
+accelerometer, trusted again, faked 7.5 deg (p95 15 / 8.6 deg before the recovery needed
+1 s of stillness at 1 g)."""
 
 
 @pytest.mark.parametrize('rate, seed', [(100.0, 0), (100.0, 1), (100.0, 2), (800.0, 0),
-                                        (800.0, 3)])
+                                        (800.0, 3), (100.0, 30), (800.0, 30)])
 def test_drive_targets_per_aid(rate, seed):
     drive = simulate_drive(rate_hz=rate, seed=seed)
     # the drive holds what the targets speak of: 0.3 g turns and braking, a stop
