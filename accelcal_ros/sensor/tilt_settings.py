@@ -43,7 +43,7 @@ class FilterSettings:
     """The low-pass while moving when odometry removes the platform's acceleration (s):
     what is left is vibration and odometry noise (0.04 s would pass 0.3 deg of it), and
     the double low-pass does not lag behind the body's steady roll in a turn."""
-    vertical_aid_time_constant_s: float = 3.0
+    vertical_aid_time_constant_s: float = 3.5
     """While the accelerometer is rejected, the pull along the horizontal acceleration from
     the specific force's vertical component staying 1 g (s; 0: off; a vehicle)."""
 
