@@ -18,10 +18,10 @@ feeds it) and returns the bias at the newest block:
 * when the stillness ends, the blocks of its last detector window (0.3 s, where the
   motion may have begun) are dropped; with ``carry`` (:meth:`~GyroBiasEstimator.feed`)
   the line is carried over them to the end of the stillness (its slope times their
-  span): a drift is then not 0.3 s behind. The filter carries it only without odometry (with odometry
-  the accelerometer stays trusted through manoeuvres and its integral term corrects the
-  bias; the slope's noise carried along made + both at 800 Hz worse: median p95 0.148 ->
-  0.153 deg over drive seeds 0-15).
+  span): a drift is then not 0.3 s behind. The filter carries it only without odometry
+  (with odometry the accelerometer stays trusted through manoeuvres and its integral
+  term corrects the bias; the slope's noise carried along made + both at 800 Hz worse:
+  median p95 0.148 -> 0.153 deg over drive seeds 0-15).
 
 Why it matters: while the platform accelerates, the tilt runs mostly on the gyro, and
 a bias error ``e`` (rad/s) tilts the estimate by ``e t`` over a manoeuvre of ``t`` s
