@@ -15,6 +15,13 @@ feeds it) and returns the bias at the newest block:
   moves by up to 40 deg/s over -40..85 deg C) is followed, a constant one is averaged;
 * the previous still period's estimate is combined by inverse variance, its variance
   grown by ``(drift_rad_s2 * elapsed)^2``.
+* when the stillness ends, the blocks of its last detector window (0.3 s, where the
+  motion may have begun) are dropped; with ``carry`` (:meth:`~GyroBiasEstimator.feed`)
+  the line is carried over them to the end of the stillness (its slope times their
+  span): a drift is then not 0.3 s behind. The filter carries it only without odometry
+  (with odometry the accelerometer stays trusted through manoeuvres and its integral
+  term corrects the bias; the slope's noise carried along made + both at 800 Hz worse:
+  median p95 0.148 -> 0.153 deg over drive seeds 0-15).
 
 Why it matters: while the platform accelerates, the tilt runs mostly on the gyro, and
 a bias error ``e`` (rad/s) tilts the estimate by ``e t`` over a manoeuvre of ``t`` s
@@ -46,6 +53,7 @@ class GyroBiasEstimator:
         self._run: List = []
         self._eval_t = 0.0
         self._n_last = 1.0
+        self._carried = True
         self.restart()
 
     def restart(self) -> None:
@@ -54,13 +62,14 @@ class GyroBiasEstimator:
         self._pending: Deque[Tuple[float, float, float, float, float, int]] = deque()
 
     def feed(self, stamp: float, gyro: Sequence[float], thresholds: StillnessThresholds,
-             still: bool) -> None:
+             still: bool, carry: bool = True) -> None:
         """
         Average a gyro sample into 20 ms blocks; add those a still window has passed.
 
         ``still``: whether the sample may be used now (the detector says still, and the
         caller's conditions); a block enters only once the detector's window after it
-        has been still too (the start of a motion never enters).
+        has been still too (the start of a motion never enters); ``carry``: whether the
+        line is carried over those dropped blocks when the stillness ends (see the module).
         """
         block = self._block
         if block is None or stamp >= block[0] + thresholds.block_s or stamp < block[0]:
@@ -71,6 +80,14 @@ class GyroBiasEstimator:
             block = self._block = [stamp, 0.0, 0.0, 0.0, 0, stamp]
             pending = self._pending
             if not still:
+                if pending and carry and self._run and not self._carried:
+                    # the stillness's last window never enters: the line carried over it
+                    span = pending[-1][1] - self.time
+                    if span > 0.0:
+                        b, v = self.bias, self._slopes
+                        self.bias = (b[0] + v[0] * span, b[1] + v[1] * span, b[2] + v[2] * span)
+                        self.time = self.time + span
+                    self._carried = True
                 pending.clear()
             else:
                 limit = stamp - thresholds.window_s
@@ -116,6 +133,7 @@ class GyroBiasEstimator:
             a[1] = a[1] * forget + n * x * y
             a[2] = a[2] * forget + n * y * y
         self.blocks += 1
+        self._carried = False
         self.time = t_end
         self._eval_t = x
         self._n_last = n
@@ -146,6 +164,7 @@ class GyroBiasEstimator:
         prior_s = self.drift_rad_s2 ** 2
         shrink = prior_s / (prior_s + var_s) if math.isfinite(var_s) else 0.0
         slopes = [v * shrink for v in slopes_raw]
+        self._slopes = slopes
         lever = (x - mean_t) ** 2
         levels = [m + v * (x - mean_t) for m, v in zip(means, slopes)]
         var_level = var_mean + lever * (1.0 - shrink) ** 2 * prior_s

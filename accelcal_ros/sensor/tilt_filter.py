@@ -60,25 +60,26 @@ arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |``
 innovation has grown past the limit: when an axis's rejection starts, the corrections
 made on it (pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``,
 exponential weight; none at rest) are taken back. Rejected for ``rejection_timeout_s``,
-or still for 3 s (1 s when odometry says stopped), the accelerometer is trusted again.
+or for 3 s (1 s when odometry says stopped) and still for 1 s with a still average within
+0.003 g of 1 g in magnitude (a steady pull is not), the accelerometer is trusted again.
 **Vertical aid** while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle
-accelerates horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt
-at rest as the mean force along ``u``); its excess along the estimate measures the error
-along the horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias.
-horizontal_error`), corrected with that time constant (not fed to the bias: the road's
-vibration on it would reach the bias). The gyro bias ``b`` is learnt while the detector
-says still (mean corrected rate below 0.01 rad/s once a bias is known), the accelerometer
-agrees within 0.5 deg and odometry, if given, says stopped: :class:`~accelcal_ros.sensor.
+accelerates horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt at
+rest as the mean force along ``u``); its excess along the estimate measures the error along
+the horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias. horizontal_error`),
+corrected with that time constant (not fed to the bias: the road's vibration on it would
+reach the bias). The gyro bias ``b`` is learnt while the detector says still (mean
+corrected rate below 0.01 rad/s once a bias is known), the accelerometer agrees within 0.5
+deg and odometry, if given, says stopped: :class:`~accelcal_ros.sensor.
 gyro_bias.GyroBiasEstimator` (20 ms blocks a still window has passed; a line with a drift
-prior ``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``). Until 0.2 s of
-stillness have given a bias the output is the accelerometer-only estimate. At rest the
-direction is the Kalman update of the propagated one with each sample, then the still
-average weighed by the two variances (it wins within a second; its line through the few
-samples after a stop does not). Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b
-dt)^2`` (gyro noise ``s_w``, bias uncertainty ``s_b`` growing by
-``gyro_bias_drift_rad_s2`` per second away from stillness), then ``P = (1 - k)^2 P + k^2
-R`` (``R``: the accelerometer's angle variance), plus the squared low-passed innovation
-while the accelerometer is used.
+prior ``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``; without odometry carried
+over the stillness's last window). Until 0.2 s of stillness have given a bias the output is
+the accelerometer-only estimate. At rest the direction is the Kalman update of the
+propagated one with each sample, then the still average weighed by the two variances (it
+wins within a second; its line through the few samples after a stop does not). Variance:
+per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``, bias uncertainty
+``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from stillness), then ``P =
+(1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the squared
+low-passed innovation while the accelerometer is used.
 
 Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``) are not used:
 the previous good rate is kept for up to 0.1 s, after which the filter falls back to the
@@ -97,9 +98,10 @@ from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
 from accelcal_ros.sensor.tilt_settings import (
     BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
     BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
-    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, STILL_RECOVERY_S,
-    STILL_RECOVERY_TIME_CONSTANT_S, STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S,
-    UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G, VERTICAL_AID_MIN_G)
+    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, RECOVERY_FORCE_G,
+    RECOVERY_STILL_S, STILL_RECOVERY_S, STILL_RECOVERY_TIME_CONSTANT_S,
+    STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S, UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G,
+    VERTICAL_AID_MIN_G)
 
 MODE_ACCEL = 'accelerometer only'
 MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it does not ' \
@@ -168,6 +170,7 @@ class AttitudeFilter:
         self._p = 0.0
         self._innovation = (0.0, 0.0, 0.0)
         self._reject_since: Optional[float] = None
+        self._moved_at = -math.inf
         self._recent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
         self._rejected_x = self._rejected_y = False
         if not hasattr(self, '_g_scale'):
@@ -240,13 +243,14 @@ class AttitudeFilter:
         else:
             detector.add(stamp, (fx, fy, fz))
         still = detector.still
+        self._moved_at = self._moved_at if still else stamp
         if gyro is not None:   # not while the accelerometer disagrees: a steady pull
             est = self._bias_est
             est.memory_s = settings.bias_time_constant_s
             est.drift_rad_s2 = settings.gyro_bias_drift_rad_s2
-            est.feed(stamp, gyro, detector.thresholds,
-                     still and not self.rejecting and not platform_moving
-                     and math.hypot(*self._innovation) < BIAS_INNOVATION_LIMIT_RAD)
+            est.feed(stamp, gyro, detector.thresholds, still and not self.rejecting
+                     and not platform_moving and math.hypot(*self._innovation)
+                     < BIAS_INNOVATION_LIMIT_RAD, carry=not aided_by_odometry)
         # the fast and the still averages (always: the fallback and the still output)
         a_fast = low_pass_gain(dt, settings.odometry_time_constant_s if aided_by_odometry
                                else settings.moving_time_constant_s)
@@ -486,7 +490,8 @@ class AttitudeFilter:
                 still_for = STILL_RECOVERY_S if platform_moving is False \
                     else STILL_RECOVERY_UNAIDED_S
                 if stamp - since > settings.rejection_timeout_s or (
-                        self.detector.still and stamp - since > still_for):
+                        stamp - since > still_for and stamp - self._moved_at >= RECOVERY_STILL_S
+                        and abs(math.hypot(*out) - self._g_scale) < RECOVERY_FORCE_G):
                     # trusted again: fast while still (stopped after a drift)
                     reject = reject_x = reject_y = False
                     k_fast = low_pass_gain(dt, STILL_RECOVERY_TIME_CONSTANT_S) \

@@ -43,7 +43,7 @@ class FilterSettings:
     """The low-pass while moving when odometry removes the platform's acceleration (s):
     what is left is vibration and odometry noise (0.04 s would pass 0.3 deg of it), and
     the double low-pass does not lag behind the body's steady roll in a turn."""
-    vertical_aid_time_constant_s: float = 3.0
+    vertical_aid_time_constant_s: float = 3.5
     """While the accelerometer is rejected, the pull along the horizontal acceleration from
     the specific force's vertical component staying 1 g (s; 0: off; a vehicle)."""
 
@@ -101,6 +101,13 @@ STILL_RECOVERY_S = 1.0
 manoeuvre; the accelerometer is trusted again."""
 STILL_RECOVERY_UNAIDED_S = 3.0
 """The same without odometry (a steady pull on a smooth road also looks still)."""
+RECOVERY_STILL_S = 1.0
+"""That recovery needs this long a stillness (s; the detector's ``min_still_s``): a steady
+pull passes the detector now and then for a block or two."""
+RECOVERY_FORCE_G = 0.003
+"""And the still average's magnitude within this of the 1 g at rest (g): a steady pull of
+``a`` g on a smooth road passes the detector for seconds, but ``|f| = sqrt(1 + a^2)``
+(0.1 g: 0.005 g over; the average's noise over 1 s: 0.0004 g)."""
 STILL_RECOVERY_TIME_CONSTANT_S = 0.5
 """Time constant of that recovery (s)."""
 

@@ -19,13 +19,20 @@ TARGET_ODOMETRY_P95_DEG = 1.0
 TARGET_GYRO_P95_DEG = 0.3
 """With a gyro: p95 <= 0.3 deg (issue 20); met by gyro + odometry, by the gyro alone on
 most seeds (the README gives the spread)."""
-GYRO_ALONE_P95_DEG = 0.4
-"""The gyro alone on the seeds below: p95 0.22-0.35 deg (0.31 and 0.35 on 100 Hz seed 1
-and 800 Hz seed 3); what the filter achieves, with a margin."""
+GYRO_ALONE_P95_DEG = 0.37
+"""The gyro alone on the seeds below: p95 0.20-0.34 deg (0.34 on 800 Hz seed 3); what the
+filter achieves, with a margin. Seed 30 (0.24 / 0.28 deg at 100 / 800 Hz): its pull away
+passed the stillness detector for one block 3 s into the rejection, and the
+accelerometer, trusted again, faked 7.5 deg (p95 15 / 8.6 deg before the recovery needed
+1 s of stillness at 1 g)."""
+BOTH_OVER_GYRO_DEG = 0.03
+"""Both aids against the gyro alone: odometry adds its noise, and on a few seeds the gyro
+alone is the better (drive seeds 0-31: 2 at 100 Hz, 3 at 800 Hz; 100 Hz seed 1: 0.278
+against 0.262 deg)."""
 
 
 @pytest.mark.parametrize('rate, seed', [(100.0, 0), (100.0, 1), (100.0, 2), (800.0, 0),
-                                        (800.0, 3)])
+                                        (800.0, 3), (100.0, 30), (800.0, 30)])
 def test_drive_targets_per_aid(rate, seed):
     drive = simulate_drive(rate_hz=rate, seed=seed)
     # the drive holds what the targets speak of: 0.3 g turns and braking, a stop
@@ -41,9 +48,9 @@ def test_drive_targets_per_aid(rate, seed):
     assert both['max_deg'] <= TARGET_MAX_DEG
     assert odo['p95_deg'] <= TARGET_ODOMETRY_P95_DEG / 2.0   # the target with a margin
     assert odo['max_deg'] <= TARGET_MAX_DEG
-    # both aids: the gyro target, and no worse than the gyro alone
+    # both aids: the gyro target, and about as good as the gyro alone or better
     assert both['p95_deg'] <= TARGET_GYRO_P95_DEG
-    assert both['p95_deg'] <= gyro['p95_deg']
+    assert both['p95_deg'] <= gyro['p95_deg'] + BOTH_OVER_GYRO_DEG
     # the gyro alone: near its target on every seed (the spread: README)
     assert gyro['p95_deg'] <= GYRO_ALONE_P95_DEG
 

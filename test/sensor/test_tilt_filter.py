@@ -176,6 +176,24 @@ def test_the_onset_of_an_acceleration_is_taken_back_when_it_is_rejected(rate, mo
     assert bias < 0.25 * bias_kept
 
 
+@pytest.mark.parametrize('rate', [100.0, 800.0])
+def test_a_steady_pull_that_looks_still_does_not_bring_the_accelerometer_back(
+        rate, monkeypatch):
+    # on a smooth road the pull away (0.15 g, 6 s) passes the stillness detector; 3 s into
+    # its rejection the accelerometer is trusted again only if the still average's
+    # magnitude is 1 g (a pull's is sqrt(1 + a^2)): else 8.5 deg of pitch are faked
+    drive = simulate_drive(rate_hz=rate, seed=2, vibration_g=0.0)
+
+    def first_14_s():
+        est = estimate_series(drive.t, drive.accel_g, drive.gyro_rad_s)
+        err, keep = _drive_errors(drive, est)
+        return err[drive.t[keep] < 14.0].max()   # the pull away and a cruise
+
+    assert first_14_s() < 0.5
+    monkeypatch.setattr(tilt_filter, 'RECOVERY_FORCE_G', math.inf)
+    assert first_14_s() > 5.0
+
+
 def test_bad_gyro_samples_are_bridged_then_dropped_with_a_reason():
     truth = SensorModel.identity()
     raw = specific_force_from_roll_pitch(0.1, -0.2)
