@@ -20,7 +20,9 @@ into one): they are logged as one FATAL line through the node's logger (so they 
 reach ``/rosout``), or through a logger named after the executable when the node does not
 exist yet, and the process exits with status 1 instead of printing a traceback. rcl's
 own errors about the command line (``-p model:=``, ``--params-file /missing.yaml``) are
-one such line too (:func:`rcl_argument_error`).
+one such line too (:func:`rcl_argument_error`). After a FATAL line the node lingers until
+a ``/rosout`` reader is matched, at most ``ACCELCAL_ROSOUT_WAIT_S`` seconds (default 3:
+how long a failed ``ros2 run`` may take to return when nothing reads ``/rosout``).
 """
 import contextlib
 import os
@@ -140,15 +142,32 @@ def _executable_name() -> str:
     return os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else 'accelcal_ros'
 
 
-def _linger_for_rosout(node: Node, wait_s: float = 3.0, delivery_s: float = 0.3) -> None:
+ROSOUT_WAIT_S = 3.0
+"""Default of ``ACCELCAL_ROSOUT_WAIT_S``: seconds a failing node waits for a ``/rosout`` reader."""
+
+
+def _rosout_wait_s() -> float:
+    """``ACCELCAL_ROSOUT_WAIT_S`` (seconds, 0-60), or :data:`ROSOUT_WAIT_S` if unset or bad."""
+    try:
+        value = float(os.environ.get('ACCELCAL_ROSOUT_WAIT_S', ROSOUT_WAIT_S))
+    except ValueError:
+        return ROSOUT_WAIT_S
+    return value if 0.0 <= value <= 60.0 else ROSOUT_WAIT_S
+
+
+def _linger_for_rosout(node: Node, wait_s: Optional[float] = None,
+                       delivery_s: float = 1.0) -> None:
     """
     Keep the node alive until ``/rosout`` readers (rqt_console, a recorder) got the line.
 
     ``/rosout`` is transient-local: a reader matched while the node lives still gets the
-    line. A silent publisher on ``/rosout`` with the same QoS tells when readers are
-    matched (DDS matching; the graph cache can lag it by seconds); then ``delivery_s``
-    more. At most ``wait_s`` when no reader is there.
+    line. A silent publisher on ``/rosout`` with the same QoS tells when this node has
+    matched a reader (DDS matching; the graph cache can lag it by seconds); the reader
+    matches this node's writers on its own side a little later, hence ``delivery_s`` more
+    (1 s: enough on a loaded machine). At most ``wait_s`` (:func:`_rosout_wait_s`) when no
+    reader is there.
     """
+    wait_s = _rosout_wait_s() if wait_s is None else wait_s
     try:
         from rcl_interfaces.msg import Log
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
