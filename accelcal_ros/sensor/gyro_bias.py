@@ -54,6 +54,12 @@ class GyroBiasEstimator:
         self._eval_t = 0.0
         self._n_last = 1.0
         self._carried = True
+        self.turning = False
+        """Whether the current still line turns (no rest: its blocks are not learnt)."""
+        self.rest_due = -math.inf
+        """When the still line's next verdict is due (s; one per 20 ms block)."""
+        self._proven = False
+        self._since = -math.inf
         self.restart()
 
     def restart(self) -> None:
@@ -99,6 +105,36 @@ class GyroBiasEstimator:
         block[3] += gyro[2]
         block[4] += 1
         block[5] = stamp
+
+    def still_started(self, since: float) -> None:
+        """Start a still line (the stillness since ``since``, s): nothing shown yet."""
+        self.turning = self._proven = False
+        self._since = since
+        self.rest_due = -math.inf
+
+    def rest(self, due: float, verdict: Tuple[bool, bool]) -> None:
+        """Take a still line's verdict (turning, shown at rest; next due at ``due``, s)."""
+        self.rest_due = due
+        if verdict[0] and not self.turning:
+            self.discard()
+        self.turning = verdict[0]
+        self._proven = self._proven or verdict[1]
+
+    def still_ended(self) -> None:
+        """End the still line: forget what it taught unless it was shown at rest."""
+        if not self._proven:
+            self.discard()
+
+    def discard(self) -> None:
+        """Forget what the current stillness taught (it was no rest after all)."""
+        run = self._run
+        if run and run[0] >= self._since:
+            self.bias, self.variance, self.time = run[2], run[3], run[4]
+            self._run = []
+            if not math.isfinite(self.variance):   # nothing learnt before it
+                self.blocks = 0
+        self._pending.clear()
+        self._carried = True
 
     def adjust(self, bias: Tuple[float, float, float]) -> None:
         """Replace the estimate (e.g. by an integral correction while moving)."""

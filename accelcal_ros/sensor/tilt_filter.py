@@ -1,17 +1,17 @@
 r"""
 Roll and pitch a panorama can use: steady at rest, aided in motion (pure core).
 
-:class:`AttitudeFilter` turns a stream of accelerometer samples (raw, g; REP-145 +1 g up
-at rest), optionally with angular velocity (rad/s, same body frame, x forward, y left,
-z up) and the platform's own acceleration (g, from odometry:
-:mod:`accelcal_ros.sensor.odometry_aid`), into roll and pitch (REP-103, rad) with an
-honest covariance. Calibration, impossible samples and the angle equations are those of
+:class:`AttitudeFilter` turns a stream of accelerometer samples (raw, g; REP-145 +1 g up at
+rest), optionally with angular velocity (rad/s, same body frame, x forward, y left, z up)
+and the platform's own acceleration (g, from odometry:
+:mod:`accelcal_ros.sensor.odometry_aid`), into roll and pitch (REP-103, rad) with an honest
+covariance. Calibration, impossible samples and the angle equations are those of
 :class:`~accelcal_ros.sensor.tilt.TiltEstimator` (one implementation).
 
-**Accelerometer only: averaging adapted to stillness.** The specific force ``f`` (minus
-the platform acceleration when given) feeds :class:`~accelcal_ros.sensor.stillness.
-StillnessDetector` (its default thresholds; with a known gyro bias a mean rate below
-0.01 rad/s) and two averages:
+**Accelerometer only: averaging adapted to stillness.** The specific force ``f`` (minus the
+platform acceleration when given) feeds :class:`~accelcal_ros.sensor.stillness.
+StillnessDetector` (its default thresholds; with a known gyro bias a mean rate below 0.01
+rad/s) and two averages:
 
 * *fast*: a first-order low-pass ``f_fast += a (f - f_fast)``, ``a = 1 - exp(-dt /
   moving_time_constant_s)`` (0.04 s: one 25 fps frame). The output while moving is the
@@ -31,45 +31,35 @@ StillnessDetector` (its default thresholds; with a known gyro bias a mean rate b
   standard deviations of the moving output on an axis (0.3-0.5 deg): the still average
   is dropped and the moving output is used for one detector window (0.3 s).
 
-Covariance: the noise propagated as in :class:`TiltEstimator`, times the variance ratio
-of the average (``(4 n - 2) / (n (n + 1))`` for the end of a line through n samples, the
-double low-pass's sum of squared weights), plus the calibration's ``tilt_std_rad^2``.
+The averages' covariance and **honest when blind**: :mod:`accelcal_ros.sensor.tilt_settings`.
 
-**Honest when blind.** The accelerometer cannot tell gravity from a steady acceleration.
-While moving without an aid, the variance gains ``max(asin(| |f| - 1 |), atan(s))^2``
-with ``s`` the detector's spread of 20 ms means (g): the tilt that the motion seen could
-fake. On a platform that may accelerate steadily (``platform_accel_g`` > 0: a vehicle, a
-mast on a ship) a steady turn looks still, so the variance gains
-``atan(platform_accel_g)^2`` on every sample unless odometry or a gyro is used;
-:attr:`AttitudeFilter.mode` says which case applies. ``| |f_fast| - 1 |`` above
-``accel_threshold_g`` (calibrated sensors only; single samples at 800 Hz would cross
-0.05 g by noise) holds the last good tilt (at most ``max_hold_s``), as
-:class:`TiltEstimator` does.
-
-**Gyro-aided (complementary filter on the gravity direction).** With angular velocity
-``w`` the filter keeps ``u``, the unit "up" direction in the body frame, propagated by
-``du/dt = u x (w - b)`` and pulled towards ``f / |f|`` with the gain
-``k = 1 - exp(-dt / gyro_time_constant_s)`` (imu_tools' complementary filter, Mahony's
-proportional term, plus his integral term on ``b``); yaw stays unobserved. Acceleration
-rejection per axis (x-io Fusion rejects all axes): the innovation ``f / |f| - u``,
-low-passed over 0.1 s, beyond ``rejection_deg`` on body x (braking, pulling) or y (a
-turn's centripetal acceleration) stops the pull on that axis only (the other is pulled
-towards ``f / g_scale``); in a turn (rate about up beyond 9 deg/s, no odometry) a lever
-arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |`` above
-``accel_threshold_g`` stops both. The test sees an acceleration only once its low-passed
-innovation has grown past the limit: when an axis's rejection starts, the corrections
-made on it (pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``,
-exponential weight; none at rest) are taken back. Rejected for ``rejection_timeout_s``,
-or for 3 s (1 s when odometry says stopped) and still for 1 s with a still average within
-0.003 g of 1 g in magnitude (a steady pull is not), the accelerometer is trusted again.
-**Vertical aid** while rejecting (``vertical_aid_time_constant_s``, 0: off): a vehicle
-accelerates horizontally, so the force along the true up stays ``g_scale`` (1 g, learnt at
-rest as the mean force along ``u``); its excess along the estimate measures the error along
-the horizontal acceleration (:func:`~accelcal_ros.sensor.gyro_bias. horizontal_error`),
-corrected with that time constant (not fed to the bias: the road's vibration on it would
-reach the bias). The gyro bias ``b`` is learnt while the detector says still (mean
-corrected rate below 0.01 rad/s once a bias is known), the accelerometer agrees within 0.5
-deg and odometry, if given, says stopped: :class:`~accelcal_ros.sensor.
+**Gyro-aided (complementary filter on the gravity direction).** With angular velocity ``w``
+the filter keeps ``u``, the unit "up" direction in the body frame, propagated by ``du/dt =
+u x (w - b)`` and pulled towards ``f / |f|`` with the gain ``k = 1 - exp(-dt /
+gyro_time_constant_s)`` (imu_tools' complementary filter, Mahony's proportional term, plus
+his integral term on ``b``); yaw stays unobserved. Acceleration rejection per axis (x-io
+Fusion rejects all axes): the innovation ``f / |f| - u``, low-passed over 0.1 s, beyond
+``rejection_deg`` on body x (braking, pulling) or y (a turn's centripetal acceleration)
+stops the pull on that axis only (the other is pulled towards ``f / g_scale``); in a turn
+(rate about up beyond 9 deg/s, no odometry) a lever arm's centripetal acceleration reaches
+every axis and both stop; ``| |f| - 1 |`` above ``accel_threshold_g`` stops both. The test
+sees an acceleration only once its low-passed innovation has grown past the limit: when an
+axis's rejection starts, the corrections made on it (pull and integral term) over the last
+0.5 s (``UNDO_TIME_CONSTANT_S``, exponential weight; none at rest) are taken back. Rejected
+for ``rejection_timeout_s``, or for 3 s (1 s when odometry says stopped) and still for 1 s
+with a still average within 0.003 g of 1 g in magnitude (a steady pull is not), the
+accelerometer is trusted again. **Vertical aid** while rejecting
+(``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates horizontally, so the
+force along the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along
+``u``); its excess along the estimate measures the error along the horizontal acceleration
+(:func:`~accelcal_ros.sensor.gyro_bias. horizontal_error`), corrected with that time
+constant (not fed to the bias: the road's vibration on it would reach the bias). The gyro
+bias ``b`` is learnt while the detector says still (mean corrected rate below 0.01 rad/s
+once a bias is known), the accelerometer agrees within 0.5 deg and odometry, if given, says
+stopped; without odometry, not from a still line whose direction turns
+(:func:`~accelcal_ros.sensor.tilt_settings.still_turning`: on a smooth road a vehicle
+cruising over a changing grade passes the detector), and what a stillness taught is
+forgotten if it turns or ends before its line has shown rest: :class:`~accelcal_ros.sensor.
 gyro_bias.GyroBiasEstimator` (20 ms blocks a still window has passed; a line with a drift
 prior ``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``; without odometry carried
 over the stillness's last window). Until 0.2 s of stillness have given a bias the output is
@@ -81,10 +71,8 @@ per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``, bias u
 (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the squared
 low-passed innovation while the accelerometer is used.
 
-Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``) are not used:
-the previous good rate is kept for up to 0.1 s, after which the filter falls back to the
-accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them by reason.
-
+Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``): the last good rate
+for up to 0.1 s, then the accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them.
 Cost: plain floats per sample (no numpy), as :class:`TiltEstimator`.
 """
 import math
@@ -98,10 +86,10 @@ from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
 from accelcal_ros.sensor.tilt_settings import (
     BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
     BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
-    GYRO_HOLD_S, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S, RECOVERY_FORCE_G,
-    RECOVERY_STILL_S, STILL_RECOVERY_S, STILL_RECOVERY_TIME_CONSTANT_S,
-    STILL_RECOVERY_UNAIDED_S, TURN_RATE_RAD_S, UNDO_TIME_CONSTANT_S, VERTICAL_AID_FULL_G,
-    VERTICAL_AID_MIN_G)
+    GYRO_HOLD_S, holt_slope, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S,
+    RECOVERY_FORCE_G, RECOVERY_STILL_S, STILL_RECOVERY_S, STILL_RECOVERY_TIME_CONSTANT_S,
+    STILL_RECOVERY_UNAIDED_S, still_turning, TURN_RATE_RAD_S, UNDO_TIME_CONSTANT_S,
+    VERTICAL_AID_FULL_G, VERTICAL_AID_MIN_G)
 
 MODE_ACCEL = 'accelerometer only'
 MODE_BLIND = 'accelerometer only on a moving platform: tilt valid only while it does not ' \
@@ -244,13 +232,15 @@ class AttitudeFilter:
             detector.add(stamp, (fx, fy, fz))
         still = detector.still
         self._moved_at = self._moved_at if still else stamp
+        self._blind = platform_moving is None   # no odometry to tell rest from a smooth road
         if gyro is not None:   # not while the accelerometer disagrees: a steady pull
             est = self._bias_est
             est.memory_s = settings.bias_time_constant_s
             est.drift_rad_s2 = settings.gyro_bias_drift_rad_s2
             est.feed(stamp, gyro, detector.thresholds, still and not self.rejecting
-                     and not platform_moving and math.hypot(*self._innovation)
-                     < BIAS_INNOVATION_LIMIT_RAD, carry=not aided_by_odometry)
+                     and not platform_moving and not (self._blind and est.turning)
+                     and math.hypot(*self._innovation) < BIAS_INNOVATION_LIMIT_RAD,
+                     carry=not aided_by_odometry)
         # the fast and the still averages (always: the fallback and the still output)
         a_fast = low_pass_gain(dt, settings.odometry_time_constant_s if aided_by_odometry
                                else settings.moving_time_constant_s)
@@ -282,6 +272,8 @@ class AttitudeFilter:
         if still and not blocks and stamp >= self._moving_until:
             out, shrink = self._still_average(fast, out, (fx, fy, fz), stamp, dt, shrink)
         else:
+            if self._still is not None and self._blind:
+                self._bias_est.still_ended()
             self._still = None
         if gyro is not None and bias_known:
             return self._gyro_update(stamp, dt, gyro, (fx, fy, fz), magnitude, accelerating,
@@ -343,6 +335,7 @@ class AttitudeFilter:
             # sums of the regression: n, t, t^2, then per axis y and t*y (t from now)
             state = self._still = [dema, 'line', stamp, [0.0, 0.0, 0.0],
                                    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]
+            self._bias_est.still_started(self._moved_at)
         a = low_pass_gain(dt, self.settings.still_time_constant_s)
         fx, fy, fz = force
         if state[1] == 'line':
@@ -371,6 +364,8 @@ class AttitudeFilter:
                 level.append(sums[3 + k] / n + m * (t - mean_t))
             out = (level[0], level[1], level[2])
             state[0] = out
+            if self._blind and stamp >= self._bias_est.rest_due:   # per 20 ms block
+                self._rest(stamp, still_turning(level, slope, n / den, cov))
             if a > 0.0 and 1.0 / n < a:   # the line spans the time constant: go on as 2S - S2
                 d = [m * dt * (1.0 - a) / a for m in slope]
                 state[1] = 'holt'
@@ -383,7 +378,12 @@ class AttitudeFilter:
             s2[k] += a * (s1[k] - s2[k])
         out = (2.0 * s1[0] - s2[0], 2.0 * s1[1] - s2[1], 2.0 * s1[2] - s2[2])
         state[0] = out
+        if self._blind and stamp >= self._bias_est.rest_due and 0.0 < a < 1.0:
+            self._rest(stamp, still_turning(out, *holt_slope(s1, s2, a, dt), cov))
         return out, dema_variance_ratio(a)
+
+    def _rest(self, stamp, verdict):
+        self._bias_est.rest(stamp + self.detector.thresholds.block_s, verdict)
 
     def _accel_output(self, stamp, force, magnitude, deviation, accelerating, still, out,
                       shrink, aided_by_odometry, mode):

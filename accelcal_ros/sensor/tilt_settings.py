@@ -3,9 +3,24 @@ Settings of the attitude filter and the small helpers of its averages (pure core
 
 :class:`FilterSettings` is documented with :mod:`accelcal_ros.sensor.tilt_filter`, which
 re-exports it; the node's parameters take their defaults from it.
+
+Covariance: the noise propagated as in :class:`TiltEstimator`, times the variance ratio of
+the average (``(4 n - 2) / (n (n + 1))`` for the end of a line through n samples, the
+double low-pass's sum of squared weights), plus the calibration's ``tilt_std_rad^2``.
+
+**Honest when blind.** The accelerometer cannot tell gravity from a steady acceleration.
+While moving without an aid, the variance gains ``max(asin(| |f| - 1 |), atan(s))^2`` with
+``s`` the detector's spread of 20 ms means (g): the tilt that the motion seen could fake.
+On a platform that may accelerate steadily (``platform_accel_g`` > 0: a vehicle, a mast on
+a ship) a steady turn looks still, so the variance gains ``atan(platform_accel_g)^2`` on
+every sample unless odometry or a gyro is used; :attr:`AttitudeFilter.mode` says which case
+applies. ``| |f_fast| - 1 |`` above ``accel_threshold_g`` (calibrated sensors only; single
+samples at 800 Hz would cross 0.05 g by noise) holds the last good tilt (at most
+``max_hold_s``), as :class:`TiltEstimator` does.
 """
 from dataclasses import dataclass, fields
 import math
+from typing import List, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 
@@ -110,6 +125,44 @@ RECOVERY_FORCE_G = 0.003
 (0.1 g: 0.005 g over; the average's noise over 1 s: 0.0004 g)."""
 STILL_RECOVERY_TIME_CONSTANT_S = 0.5
 """Time constant of that recovery (s)."""
+STILL_ROTATION_RAD_S = math.radians(0.1)
+"""The gyro bias is learnt only from a still line whose direction is shown to turn slower
+than this (its slope across it, plus 2 sigma; g/s ~ rad/s): on a smooth road a vehicle
+cruising over a changing grade or bank (0.3-0.5 deg/s) passes the stillness detector, and
+its rate would be learnt as bias."""
+
+
+def still_turning(level: Sequence[float], slope: Sequence[float], slope_var_ratio: float,
+                  cov: Sequence[float]) -> Tuple[bool, bool]:
+    """
+    Return whether a still line (``level``, ``slope`` per s; g) turns, is shown at rest.
+
+    Its slope across its direction (g/s ~ rad/s) per axis against
+    :data:`STILL_ROTATION_RAD_S`: beyond it by 3 sigma on an axis (turning), below it by 2
+    sigma on every axis (at rest); ``slope_var_ratio``: the slope's variance per unit of a
+    sample's (``cov``: the force's 3x3 covariance, row-major, g^2).
+    """
+    size = math.sqrt(level[0] ** 2 + level[1] ** 2 + level[2] ** 2)
+    u = [x / size for x in level]
+    along = slope[0] * u[0] + slope[1] * u[1] + slope[2] * u[2]
+    across = [abs(m - along * x) for m, x in zip(slope, u)]
+    sigma = [math.sqrt(cov[4 * k] * slope_var_ratio) for k in range(3)]
+    lim = STILL_ROTATION_RAD_S
+    return (any(m - 3.0 * e > lim for m, e in zip(across, sigma)),
+            all(m + 2.0 * e < lim for m, e in zip(across, sigma)))
+
+
+def holt_slope(s1: Sequence[float], s2: Sequence[float], a: float, dt: float
+               ) -> Tuple[List[float], float]:
+    """
+    Return the slope (per s) of the double low-pass ``s1``, ``s2`` (gain ``a``), variance ratio.
+
+    A ramp ``m`` leaves ``s1 - s2 = m dt (1 - a) / a``; the slope's variance per unit of
+    a sample's is ``2 a^3 / (dt^2 (2 - a)^3)`` (the sum of its squared weights).
+    """
+    c = a / ((1.0 - a) * dt)
+    return ([(s1[k] - s2[k]) * c for k in range(3)],
+            2.0 * a ** 3 / (dt * dt * (2.0 - a) ** 3))
 
 
 def low_pass_gain(dt: float, tau: float) -> float:
