@@ -33,7 +33,7 @@ set: the 4-channel camera images; per frame: the remap.
 from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
-from accelcal_ros.panorama.view_warp import Rect, WarpPlan
+from accelcal_ros.panorama.view_warp import grow, Rect, WarpPlan
 import numpy as np
 
 GRID_STEP_PX = 16
@@ -81,15 +81,7 @@ class CameraSources:
             self._done.clear()
             self._version = object() if version is None else version
         buffer = self.image(mosaic)[y0:y0 + h, x0:x0 + w]
-        done = self._done.get(i)
-        if done is None:
-            parts, done = [rect], rect
-        else:  # convert only the strips around what is done already
-            u = (min(rect[0], done[0]), min(rect[1], done[1]), max(rect[2], done[2]),
-                 max(rect[3], done[3]))
-            parts = [(u[0], u[1], u[2], done[1]), (u[0], done[3], u[2], u[3]),
-                     (u[0], done[1], done[0], done[3]), (done[2], done[1], u[2], done[3])]
-            done = u
+        parts, done = grow(self._done.get(i), rect)   # convert only what is new
         for a0, b0, a1, b1 in parts:
             if a1 > a0 and b1 > b0:
                 cv2.cvtColor(part[b0:b1, a0:a1], cv2.COLOR_BGR2BGRA, dst=buffer[b0:b1, a0:a1])

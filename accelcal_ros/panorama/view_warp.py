@@ -48,6 +48,22 @@ DEFAULT_PLANE_SCALE = 1.5
 """Pixels of an undistorted plane per pixel of its camera (at the image centre)."""
 
 
+def grow(done: Optional[Rect], need: Rect) -> Tuple[List[Rect], Rect]:
+    """
+    Return the rectangles to add to ``done`` so that it holds ``need``, and their union.
+
+    Work done per frame set over a rectangle of a camera's image (resampling, colour
+    conversion) is grown to what a view needs: a view moving over one frame set does a
+    strip, not its whole need. Some returned rectangles may be empty (``x1 <= x0``).
+    """
+    if done is None:
+        return [need], need
+    u = (min(need[0], done[0]), min(need[1], done[1]), max(need[2], done[2]),
+         max(need[3], done[3]))
+    return [(u[0], u[1], u[2], done[1]), (u[0], done[3], u[2], u[3]),
+            (u[0], done[1], done[0], done[3]), (done[2], done[1], u[2], done[3])], u
+
+
 class CameraPlanes:
     """
     The rig cameras' undistorted image planes, resampled from a mosaic on demand.
@@ -147,17 +163,7 @@ class CameraPlanes:
             self._done = [None] * len(self._done)
             self._version = object() if version is None else version
         for i, need in needs.items():
-            done = self._done[i]
-            if done is None:
-                parts, done = [need], need
-            else:
-                # grow the done rectangle to hold the need: resample only what is new
-                # (a view moving over one frame set resamples a strip, not its whole need)
-                u = (min(need[0], done[0]), min(need[1], done[1]), max(need[2], done[2]),
-                     max(need[3], done[3]))
-                parts = [(u[0], u[1], u[2], done[1]), (u[0], done[3], u[2], u[3]),
-                         (u[0], done[1], done[0], done[3]), (done[2], done[1], u[2], done[3])]
-                done = u
+            parts, done = grow(self._done[i], need)   # resample only what is new
             for x0, y0, x1, y1 in parts:
                 if x1 <= x0 or y1 <= y0:
                     continue
