@@ -52,7 +52,7 @@ accelerometer is trusted again. **Vertical aid** while rejecting
 (``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates horizontally, so the
 force along the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along
 ``u``); its excess along the estimate measures the error along the horizontal acceleration
-(:func:`~accelcal_ros.sensor.gyro_bias. horizontal_error`), corrected with that time
+(:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`), corrected with that time
 constant (not fed to the bias: the road's vibration on it would reach the bias). The gyro
 bias ``b`` is learnt while the detector says still (mean corrected rate below 0.01 rad/s
 once a bias is known), the accelerometer agrees within 0.5 deg and odometry, if given, says
