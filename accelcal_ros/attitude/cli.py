@@ -28,6 +28,9 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='sample rates in Hz (default 100)')
     p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
     p.add_argument('--no-anchors', action='store_true', help='skip imufusion and ahrs')
+    p.add_argument('--vibration-g', type=float_in(0.0, 1.0), default=None, metavar='G',
+                   help='road vibration of the drive (g rms on z, a third on x and y; '
+                   'default 0.03; 0: a smooth floor, where a cruise looks still)')
     p.add_argument('--seeds', type=nonnegative_int, default=0,
                    help="also the spread of the aided rows' p95 over seeds 0 .. N-1")
     p.add_argument('--drive-out', help="also write the (first rate's) drive as a CSV "
@@ -49,14 +52,15 @@ def _study(args):
               f'25 fps frames {jitter["filter"]:.2f} px rms at f = {study.FOCAL_PX:g} px '
               f'(one raw sample per frame: {jitter["one sample"]:.2f} px; target <= 0.5: '
               f'{"meets" if jitter["filter"] <= 0.5 else "MISSES"})')
-        rows = study.run_study(rate_hz=rate, seed=args.seed, anchors=not args.no_anchors)
-        for line in study.format_rows(rows, rate):
+        rows = study.run_study(rate_hz=rate, seed=args.seed, anchors=not args.no_anchors,
+                               vibration_g=_vibration(args))
+        for line in study.format_rows(rows, rate, _vibration(args)):
             print(line)
         verdict = study.check_targets(rows)
         for line in verdict:
             print(line)
         if args.seeds > 1:
-            for line in study.seed_spread(rate, args.seeds):
+            for line in study.seed_spread(rate, args.seeds, _vibration(args)):
                 print(line)
         if args.panorama_every:
             for line in _panorama_horizon(args, rate):
@@ -65,6 +69,13 @@ def _study(args):
     if args.drive_out or args.odometry_out:
         _write_drive(args)
     return status
+
+
+def _vibration(args) -> float:
+    """Return the drive's road vibration (g): ``--vibration-g`` or the simulator's default."""
+    from accelcal_ros.sensor.drive_sim import VIBRATION_G
+
+    return VIBRATION_G if args.vibration_g is None else args.vibration_g
 
 
 PANORAMA_AIDS = (('accel only', False, False), ('+ odometry', False, True),
@@ -78,7 +89,7 @@ def _panorama_horizon(args, rate):
     from accelcal_ros.sensor.drive_sim import simulate_drive
     import numpy as np
 
-    drive = simulate_drive(rate_hz=rate, seed=args.seed)
+    drive = simulate_drive(rate_hz=rate, seed=args.seed, vibration_g=_vibration(args))
     period = args.panorama_every / 25.0
     times = np.arange(study.SETTLE_S, drive.t[-1], period)
     index = np.searchsorted(drive.t, times, side='right') - 1   # the newest estimate
@@ -97,7 +108,7 @@ def _write_drive(args):
     from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
     import numpy as np
 
-    drive = simulate_drive(rate_hz=args.rates[0], seed=args.seed)
+    drive = simulate_drive(rate_hz=args.rates[0], seed=args.seed, vibration_g=_vibration(args))
     if args.drive_out:
         table = np.column_stack([drive.t, drive.accel_g * STANDARD_GRAVITY_M_S2,
                                  drive.gyro_rad_s])

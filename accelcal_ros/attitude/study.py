@@ -26,7 +26,8 @@ import math
 from typing import Callable, Dict, List, Optional, Tuple
 
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
-from accelcal_ros.sensor.drive_sim import Drive, DRIVE_SEGMENTS, simulate_drive, still_readings
+from accelcal_ros.sensor.drive_sim import (Drive, DRIVE_SEGMENTS, simulate_drive, still_readings,
+                                           VIBRATION_G)
 from accelcal_ros.sensor.tilt import TiltEstimator
 from accelcal_ros.sensor.tilt_filter import AttitudeFilter, FilterSettings
 from accelcal_ros.sensor.tilt_series import estimate_series
@@ -166,11 +167,12 @@ def score(drive: Drive, roll: np.ndarray, pitch: np.ndarray) -> Dict[str, float]
             'horizon_p95_px': float(FOCAL_PX * math.tan(math.radians(p95)))}
 
 
-def run_study(rate_hz: float = 100.0, seed: int = 0, anchors: bool = True) -> List[dict]:
+def run_study(rate_hz: float = 100.0, seed: int = 0, anchors: bool = True,
+              vibration_g: float = VIBRATION_G) -> List[dict]:
     """Return one row per estimator: name, statistics or ``skipped`` with the reason."""
     import importlib
 
-    drive = simulate_drive(rate_hz=rate_hz, seed=seed)
+    drive = simulate_drive(rate_hz=rate_hz, seed=seed, vibration_g=vibration_g)
     rows = []
     for name, gyro, odometry in (('accel only', False, False), ('+ odometry', False, True),
                                  ('+ gyro', True, False), ('+ gyro + odometry', True, True)):
@@ -186,13 +188,14 @@ def run_study(rate_hz: float = 100.0, seed: int = 0, anchors: bool = True) -> Li
     return rows
 
 
-def format_rows(rows: List[dict], rate_hz: float) -> List[str]:
+def format_rows(rows: List[dict], rate_hz: float, vibration_g: float = VIBRATION_G
+                ) -> List[str]:
     """Return the aligned table of :func:`run_study`'s rows."""
     turns = sorted({abs(s[3]) for s in DRIVE_SEGMENTS if s[3]})
     lines = [f'Simulated drive at {rate_hz:g} Hz: {sum(s[1] for s in DRIVE_SEGMENTS):.0f} s, '
              f'turns at {", ".join(f"{v:g}" for v in turns)} g, braking 0.3 g, road '
-             'vibration, a 5 s stop with the gyro bias drifting; tilt error after '
-             f'{SETTLE_S:g} s (deg; horizon px at f = {FOCAL_PX:g} px)',
+             f'vibration {vibration_g:g} g, a 5 s stop with the gyro bias drifting; tilt error '
+             f'after {SETTLE_S:g} s (deg; horizon px at f = {FOCAL_PX:g} px)',
              f'{"estimator":<24} {"p50":>7} {"p95":>7} {"max":>7} {"roll p95":>9} '
              f'{"pitch p95":>10} {"horizon p95 px":>15}']
     for row in rows:
@@ -225,12 +228,12 @@ def check_targets(rows: List[dict]) -> List[str]:
     return lines
 
 
-def seed_spread(rate_hz: float, seeds: int) -> List[str]:
+def seed_spread(rate_hz: float, seeds: int, vibration_g: float = VIBRATION_G) -> List[str]:
     """Return lines: p95 and max of the package's aided rows over seeds 0 .. seeds - 1."""
     results: Dict[str, List[Tuple[float, float]]] = {
         '+ odometry': [], '+ gyro': [], '+ gyro + odometry': []}
     for seed in range(seeds):
-        drive = simulate_drive(rate_hz=rate_hz, seed=seed)
+        drive = simulate_drive(rate_hz=rate_hz, seed=seed, vibration_g=vibration_g)
         for name, gyro, odometry in (('+ odometry', False, True), ('+ gyro', True, False),
                                      ('+ gyro + odometry', True, True)):
             stats = score(drive, *_package(drive, gyro, odometry))

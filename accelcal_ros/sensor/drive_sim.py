@@ -63,6 +63,8 @@ RAMP_S = 1.0
 GYRO_NOISE_100HZ_RAD_S = math.radians(0.38)
 """Gyro noise at 100 Hz (ITG-3205 datasheet: 0.38 deg/s rms)."""
 ODOMETRY_RATE_HZ = 50.0
+VIBRATION_G = 0.03
+"""The road's vibration by default (g rms on z, a third on x and y; 0: a smooth floor)."""
 
 
 @dataclass
@@ -155,7 +157,7 @@ def _gy85_gyro(t: np.ndarray, signal: np.ndarray, rate_hz: float,
 
 def simulate_drive(rate_hz: float = 100.0, seed: int = 0,
                    lever_arm_m: Sequence[float] = (1.0, 0.3, 0.8),
-                   vibration_g: float = 0.03, bias_drift_deg_s: float = 0.2,
+                   vibration_g: float = VIBRATION_G, bias_drift_deg_s: float = 0.2,
                    noise_scale: float = 1.0, gy85: bool = True) -> Drive:
     """Return a :class:`Drive` sampled at ``rate_hz`` (see the module docstring)."""
     if not (rate_hz > 0 and vibration_g >= 0 and noise_scale >= 0):

@@ -33,43 +33,41 @@ rad/s) and two averages:
 
 The averages' covariance and **honest when blind**: :mod:`accelcal_ros.sensor.tilt_settings`.
 
-**Gyro-aided (complementary filter on the gravity direction).** With angular velocity ``w``
-the filter keeps ``u``, the unit "up" direction in the body frame, propagated by ``du/dt =
-u x (w - b)`` and pulled towards ``f / |f|`` with the gain ``k = 1 - exp(-dt /
-gyro_time_constant_s)`` (imu_tools' complementary filter, Mahony's proportional term, plus
-his integral term on ``b``); yaw stays unobserved. Acceleration rejection per axis (x-io
-Fusion rejects all axes): the innovation ``f / |f| - u``, low-passed over 0.1 s, beyond
-``rejection_deg`` on body x (braking, pulling) or y (a turn's centripetal acceleration)
-stops the pull on that axis only (the other is pulled towards ``f / g_scale``); in a turn
-(rate about up beyond 9 deg/s, no odometry) a lever arm's centripetal acceleration reaches
-every axis and both stop; ``| |f| - 1 |`` above ``accel_threshold_g`` stops both. The test
-sees an acceleration only once its low-passed innovation has grown past the limit: when an
-axis's rejection starts, the corrections made on it (pull and integral term) over the last
-0.5 s (``UNDO_TIME_CONSTANT_S``, exponential weight; none at rest) are taken back. Rejected
-for ``rejection_timeout_s``, or for 3 s (1 s when odometry says stopped) and still for 1 s
-with a still average within 0.003 g of 1 g in magnitude (a steady pull is not), the
-accelerometer is trusted again. **Vertical aid** while rejecting
-(``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates horizontally, so the
-force along the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along
-``u``); its excess along the estimate measures the error along the horizontal acceleration
-(:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`), corrected with that time
-constant (not fed to the bias: the road's vibration on it would reach the bias). The gyro
-bias ``b`` is learnt while the detector says still (mean corrected rate below 0.01 rad/s
-once a bias is known), the accelerometer agrees within 0.5 deg and odometry, if given, says
-stopped; without odometry, not from a still line whose direction turns
-(:func:`~accelcal_ros.sensor.tilt_settings.still_turning`: on a smooth road a vehicle
-cruising over a changing grade passes the detector), and what a stillness taught is
-forgotten if it turns or ends before its line has shown rest: :class:`~accelcal_ros.sensor.
-gyro_bias.GyroBiasEstimator` (20 ms blocks a still window has passed; a line with a drift
-prior ``gyro_bias_drift_rad_s2``, memory ``bias_time_constant_s``; without odometry carried
-over the stillness's last window). Until 0.2 s of stillness have given a bias the output is
-the accelerometer-only estimate. At rest the direction is the Kalman update of the
-propagated one with each sample, then the still average weighed by the two variances (it
-wins within a second; its line through the few samples after a stop does not). Variance:
-per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``, bias uncertainty
-``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from stillness), then ``P =
-(1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the squared
-low-passed innovation while the accelerometer is used.
+**Gyro-aided (complementary filter on the gravity direction).** With angular velocity ``w`` the
+filter keeps ``u``, the unit "up" direction in the body frame, propagated by ``du/dt = u x (w -
+b)`` and pulled towards ``f / |f|`` with the gain ``k = 1 - exp(-dt / gyro_time_constant_s)``
+(imu_tools' complementary filter, Mahony's proportional term, plus his integral term on ``b``);
+yaw stays unobserved. Acceleration rejection per axis (x-io Fusion rejects all axes): the
+innovation ``f / |f| - u``, low-passed over 0.1 s, beyond ``rejection_deg`` on body x (braking,
+pulling) or y (a turn's centripetal acceleration) stops the pull on that axis only (the other is
+pulled towards ``f / g_scale``); in a turn (rate about up beyond 9 deg/s, no odometry) a lever
+arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |`` above
+``accel_threshold_g`` stops both. The test sees an acceleration only once its low-passed
+innovation has grown past the limit: when an axis's rejection starts, the corrections made on it
+(pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``, exponential weight; none
+at rest) are taken back. Rejected for ``rejection_timeout_s``, or for 3 s (1 s when odometry says
+stopped) and still for 1 s with a still average within 0.003 g of 1 g in magnitude (a steady pull
+is not), the accelerometer is trusted again. **Vertical aid** while rejecting
+(``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates horizontally, so the force along
+the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along ``u``); its excess
+along the estimate measures the error along the horizontal acceleration
+(:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`), corrected with that time constant (not
+fed to the bias: the road's vibration on it would reach the bias). The gyro bias ``b`` is learnt
+while the detector says still (mean corrected rate below 0.01 rad/s once a bias is known), the
+accelerometer agrees within 0.5 deg and odometry, if given, says stopped; without odometry, not
+from a still line whose direction turns (:func:`~accelcal_ros.sensor.tilt_settings.still_turning`:
+on a smooth road a vehicle cruising over a changing grade passes the detector), and what a
+stillness taught is forgotten if it turns, ends or is cut by the jump test above before its line
+has shown rest: :class:`~accelcal_ros.sensor.gyro_bias.GyroBiasEstimator` (20 ms blocks a still
+window has passed; a line with a drift prior ``gyro_bias_drift_rad_s2``, memory
+``bias_time_constant_s``; without odometry carried over the stillness's last window). Until 0.2 s
+of stillness have given a bias the output is the accelerometer-only estimate. At rest the
+direction is the Kalman update of the propagated one with each sample, then the still average
+weighed by the two variances (it wins within a second; its line through the few samples after a
+stop does not). Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
+``s_w``, bias uncertainty ``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from
+stillness), then ``P = (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the
+squared low-passed innovation while the accelerometer is used.
 
 Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``): the last good rate
 for up to 0.1 s, then the accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them.
@@ -328,6 +326,8 @@ class AttitudeFilter:
                 if abs(dema[k] - out[k]) > limit * math.sqrt(var * shrink_dema) + 5e-4:
                     # a motion the detector has not seen yet: moving for one window
                     self.jumps += 1
+                    if self._blind:   # motion after all: unless shown at rest, no bias
+                        self._bias_est.still_ended()
                     self._still = None
                     self._moving_until = stamp + self.detector.thresholds.window_s
                     return dema, shrink_dema
