@@ -5,27 +5,30 @@ The :class:`~.view_warp.WarpPlan` of a pose splits the view into each camera's c
 region (eq. 6's half-planes, the camera's front and its frame's extent). Here the whole
 view is one ``cv2.remap`` from the mosaic of the cameras' own images (no undistorted
 plane in between: one resampling of the image, as the lookup renderer), through one map
-(view pixel -> mosaic pixel) made per pose from each camera's map, a smooth function of
-the view pixel over its region (the camera's homography, then its lens):
+(view pixel -> mosaic pixel) made per pose (:class:`GridMaps`); each camera's map is a
+smooth function of the view pixel over its region (its homography, then its lens):
 
-1. The camera's map is evaluated exactly on a coarse grid over the bounding box of its
-   region (:meth:`~.rig_projection.RigProjection._evaluate_soa` with that camera only:
-   the same ``K_i``, ``D_i`` as the panorama, no second copy), every
-   :data:`GRID_STEP_PX` view pixels, half a cell beyond the box on every side;
-2. ``cv2.resize`` (bilinear) spreads it to every pixel of the box: its sample positions
-   ``(x + 1/2) / s - 1/2`` fall exactly on the nodes' placement, and the half cell of
-   margin keeps the box's pixels off the resize's clamped border. The error of the
-   bilinear interpolation is measured against the exact lens by
-   ``test/panorama/test_view_grid.py`` (:data:`GRID_STEP_PX` is chosen for it);
-3. The box's pixels in the region (a ``cv2.fillPoly`` mask through every row's first and
-   last column) are copied into the view's map; rows some pixel of which no region holds
-   are ``OUTSIDE`` first. A pixel just beyond a camera's frame reads the mosaic's black
-   gap (``gap`` pixels: :attr:`~.mosaic.MosaicLayout.gap`), as the panorama's rule; a
-   node the lens cannot take or one mapped beyond the gap holds :data:`FAR`, so no pixel
-   reads a neighbour's image. A colour view is drawn in 4 channels (the cameras'
-   rectangles the maps reach converted once per frame set for all the views: OpenCV 5
-   remaps 8-bit 4-channel images from float maps about twice as fast as 3-channel ones,
-   OpenCV 4.6 about as fast) and converted back.
+1. The view is cut into cells of :data:`GRID_STEP_PX` pixels. Every camera is evaluated
+   exactly at the corners of the cells its region touches and at their centres
+   (:meth:`~.rig_projection.RigProjection._evaluate_soa`, each ray through its own
+   camera: the same ``K_i``, ``D_i`` as the panorama, no second copy);
+2. A cell inside one camera's region takes that camera's values at its corners, and one
+   ``cv2.resize`` (bilinear) per map plane spreads the node grid to every pixel: its
+   sample positions ``(x + 1/2) / s - 1/2`` fall exactly on the nodes' placement, and
+   half a cell of margin keeps the view off the resize's clamped border;
+3. The other cells (seams, frame edges) are filled pixel by pixel: each pixel of a
+   region gets the bilinear interpolation of its own camera's corner nodes (the
+   resize's weights), the rest ``OUTSIDE``. The error at the cells' centres is checked
+   against :data:`CHECK_FRACTION` of the tolerance; the grid halves (twice at most) where
+   it is exceeded, and cells still beyond it are evaluated exactly at every pixel.
+   ``test/panorama/test_view_grid.py`` measures every pixel against the exact lens.
+
+A pixel just beyond a camera's frame reads the mosaic's black gap (``gap`` pixels:
+:attr:`~.mosaic.MosaicLayout.gap`), as the panorama's rule; a node the lens cannot take
+or one mapped beyond the gap holds :data:`FAR`, so no pixel reads a neighbour's image.
+On OpenCV 5 a colour view is drawn in 4 channels (:data:`FOUR_CHANNELS_FROM`: the
+cameras' rectangles the maps reach converted once per frame set for all the views) and
+converted back.
 
 Per pose: the plan and the view's map (the part that moves with the view); per frame
 set: the 4-channel camera images; per frame: the remap.
