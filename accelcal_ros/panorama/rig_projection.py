@@ -300,8 +300,9 @@ class RigProjection:
         """
         q = np.asarray(rotations, dtype=np.float32)
         n = rays.shape[1]
-        if (only is not None and np.ndim(only) == 0) or len(q) == 1:
-            target = 0 if only is None else int(only)
+        one = only is not None and np.ndim(only) == 0
+        if one or (only is None and len(q) == 1):
+            target = int(only) if one else 0
             label = np.full(n, target, np.intp)
             cx, cy, cz = np.einsum('ij,jn->in', q[target], rays)
             constants = self._camera_table[:, target]

@@ -190,3 +190,7 @@ def test_evaluate_takes_a_camera_per_ray():
         ok = (qside & 16) == 0
         np.testing.assert_allclose(px[one][ok], qx[ok], rtol=1e-5, atol=1e-3)
         np.testing.assert_allclose(py[one][ok], qy[ok], rtol=1e-5, atol=1e-3)
+    # one camera's rotations with a camera per ray: the same as that camera for all
+    _, px, _, side = view.builder._evaluate_soa(rays, rotations[2:3], only=np.zeros(500, int))
+    _, qx, _, qside = view.builder._evaluate_soa(rays, rotations[2:3])
+    assert (side == qside).all() and (px == qx)[(side & 16) == 0].all()
