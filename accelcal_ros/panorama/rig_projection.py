@@ -289,6 +289,9 @@ class RigProjection:
         """
         :meth:`evaluate` for rays stored as ``(3, N)`` float32.
 
+        ``only``: one camera for every ray, or an array of ``N`` cameras, one per ray
+        (instead of eq. 6's choice).
+
         Every ray is rotated into every camera by one product (a few flops more than
         needed, but a fixed, small number of numpy calls whatever the number of
         cameras); each ray's camera constants are gathered from ``_camera_table``.
@@ -297,19 +300,22 @@ class RigProjection:
         """
         q = np.asarray(rotations, dtype=np.float32)
         n = rays.shape[1]
-        if only is not None or len(q) == 1:
-            target = 0 if only is None else int(only)
+        one = only is not None and np.ndim(only) == 0
+        if one or (only is None and len(q) == 1):
+            target = int(only) if one else 0
             label = np.full(n, target, np.intp)
             cx, cy, cz = np.einsum('ij,jn->in', q[target], rays)
             constants = self._camera_table[:, target]
         else:
             every = np.einsum('ij,jn->in', q.reshape(-1, 3), rays).reshape(len(q), 3, n)
-            # eq. 6: the largest z component in any camera (first camera on ties)
-            label = np.zeros(n, np.intp)
-            best = every[0, 2].copy()
-            for i in range(1, len(q)):
-                label[every[i, 2] > best] = i
-                np.maximum(best, every[i, 2], out=best)
+            if only is not None:  # the camera given per ray
+                label = np.asarray(only, np.intp)
+            else:  # eq. 6: the largest z component in any camera (first camera on ties)
+                label = np.zeros(n, np.intp)
+                best = every[0, 2].copy()
+                for i in range(1, len(q)):
+                    label[every[i, 2] > best] = i
+                    np.maximum(best, every[i, 2], out=best)
             at = label * (3 * n) + np.arange(n)  # element (label, 0, i) of ``every``
             flat = every.reshape(-1)
             cx, cy, cz = flat.take(at), flat.take(at + n), flat.take(at + 2 * n)

@@ -31,25 +31,21 @@ and the zoom.
 
 A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): the first
 frame of a frame set (live video: every frame) straight from the camera images, one
-``cv2.remap`` through a map made of each camera's map interpolated from a coarse exact
-grid (:mod:`.view_grid`), and a frame set drawn again -- a view moving over it, or
-another view posed alike -- as ``'warp'``. ``'warp'``: up to the lens, a view pixel's
-ray in camera ``i`` is a homography, so each camera's part of the view -- a convex
-region bounded by eq. 6's great circles, straight lines in a rectilinear view -- is one
-``cv2.warpPerspective`` of that camera's undistorted image plane, resampled from the
-mosaic through a fixed map built from the same lens code, once per frame set for all
-the views sharing it (:mod:`.view_warp`). ``'map'``: the lookup (view
-pixel -> mosaic pixel, :mod:`.mosaic`) is built by the panorama's fast builder
-(:class:`~.lookup.LookupBuilder`: coarse exact grid, cells classified, bilinear
-interpolation of the pure cells, seams evaluated exactly); a pure cell's interpolation
-error is within ``tolerance_px`` camera pixels (checked at its centre and edge midpoints
-against 3/4 of it; ``test/panorama/test_view.py`` measures every pixel against the exact
-map), and a frame is one ``cv2.remap`` (16-bit fixed-point maps, converted once per
-lookup). A ``'grid'`` or ``'warp'`` view still for :data:`STILL_FRAMES_BEFORE_MAP` frames
-builds its lookup and remaps from then on (a remap with a ready map is the cheapest
-frame). The view follows the attitude and its pose only when its rotation in the
-cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels no
-camera sees are black; :meth:`LevelledView.covered_fraction` reports how many are seen.
+``cv2.remap`` through a map interpolated from a coarse exact grid (:mod:`.view_grid`),
+a frame set drawn again -- moving over it, or another view posed alike -- as ``'warp'``.
+``'warp'``: up to the lens, a view pixel's ray in camera ``i`` is a homography, so each
+camera's part of the view -- a convex region bounded by eq. 6's great circles, straight
+lines in a rectilinear view -- is one ``cv2.warpPerspective`` of that camera's
+undistorted image plane, resampled from the mosaic through a fixed map built from the
+same lens code, once per frame set for all the views sharing it (:mod:`.view_warp`).
+``'map'``: the lookup (view pixel -> mosaic pixel) built by the panorama's fast builder
+(:class:`~.lookup.LookupBuilder`, error within ``tolerance_px`` camera pixels, measured
+at every pixel by ``test/panorama/test_view.py``), then one 16-bit fixed-point
+``cv2.remap`` per frame. A ``'grid'`` or ``'warp'`` view still for
+:data:`STILL_FRAMES_BEFORE_MAP` frames builds its lookup and remaps from then on (the
+cheapest frame). The view follows the attitude and its pose only when its rotation in
+the cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels
+no camera sees are black; :meth:`LevelledView.covered_fraction` says how many are seen.
 """
 from dataclasses import dataclass
 import math
@@ -60,7 +56,7 @@ from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.lookup import LookupBuilder
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.rig_projection import RigProjection, tilt_matrix
-from accelcal_ros.panorama.view_grid import CameraSources, GridMaps
+from accelcal_ros.panorama.view_grid import CameraSources, four_channels, GridMaps
 from accelcal_ros.panorama.view_warp import CameraPlanes, DEFAULT_PLANE_SCALE, WarpPlan
 import numpy as np
 from numpy.typing import ArrayLike
@@ -384,6 +380,8 @@ class LevelledView:
         self._map: Optional[np.ndarray] = None
         self._plan: Optional[WarpPlan] = None
         self._grid: Optional[GridMaps] = None
+        self._grid_buffer: Any = None  # reused from pose to pose
+        self._target: Tuple[Any, ...] = (None,)  # (attitude, pose), R, A_i or None
         self._last_version: Any = None
         self._fixed: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._band = (0, 0)
@@ -416,17 +414,19 @@ class LevelledView:
         roll, pitch = _finite('roll', roll), _finite('pitch', pitch)
         self.attitude = (roll, pitch)
 
-    def _target(self) -> Tuple[np.ndarray, float]:
+    def _rotation(self) -> Tuple[np.ndarray, float]:
         assert self.attitude is not None
-        t = tilt_matrix(self.attitude[0], self.attitude[1], self.builder.imu_to_camera)
-        return t @ view_rotation(self.pose.azimuth_rad, self.pose.elevation_rad), \
-            self.pose.fov_h_rad
+        if self._target[0] != (self.attitude, self.pose):  # computed once per pose
+            t = tilt_matrix(self.attitude[0], self.attitude[1], self.builder.imu_to_camera)
+            self._target = ((self.attitude, self.pose), t @ view_rotation(
+                self.pose.azimuth_rad, self.pose.elevation_rad), None)
+        return self._target[1], self.pose.fov_h_rad
 
     def needs_rebuild(self, target: Optional[Tuple[np.ndarray, float]] = None) -> bool:
         """Return True when the attitude or the view moved past the threshold since the map."""
         if self._built is None:
             return True
-        rotation, fov = self._target() if target is None else target
+        rotation, fov = self._rotation() if target is None else target
         old_rotation, old_fov = self._built
         cosine = (np.trace(rotation @ old_rotation.T) - 1.0) / 2.0
         moved = math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
@@ -441,7 +441,7 @@ class LevelledView:
         """
         if self.attitude is None:
             raise InputError('no attitude yet: call set_attitude() before rendering a view')
-        target = self._target()
+        target = self._rotation()
         if not self.needs_rebuild(target):
             return False
         self.builder.set_view(self.pose)
@@ -483,13 +483,18 @@ class LevelledView:
                                          [(c.width, c.height) for c in self.rig.cameras])
         return self.sources
 
+    def camera_rotations(self) -> np.ndarray:
+        """Return ``A_i``: view pixel offsets -> camera ``i`` (n, 3, 3), once per pose."""
+        if self.update() or self._target[2] is None:
+            attitude = cast(Tuple[float, float], self.attitude)
+            self._target = (*self._target[:2], self.builder.camera_rotations(*attitude))
+        return self._target[2]
+
     def plan(self) -> WarpPlan:
         """Return the current :class:`~.view_warp.WarpPlan` (regions and homographies)."""
-        self.update()
+        rotations = self.camera_rotations()
         if self._plan is None:
-            assert self.attitude is not None
-            self._plan = WarpPlan(self.builder.camera_rotations(*self.attitude),
-                                  self.shared_planes(), self.width, self.height,
+            self._plan = WarpPlan(rotations, self.shared_planes(), self.width, self.height,
                                   self.builder._grid.cx, self.builder._grid.cy)
         return self._plan
 
@@ -508,9 +513,8 @@ class LevelledView:
         """
         Return the view of ``mosaic`` (an internal buffer, overwritten next frame: copy it).
 
-        ``version`` (e.g. :attr:`ViewMosaic.version`) lets views sharing ``planes`` resample
-        each camera's plane once per frame set; None: resampled on every call. Pixels no
-        camera sees are 0.
+        ``version`` (e.g. :attr:`ViewMosaic.version`) lets views share per frame set work
+        (colour conversion, planes); None: done on every call. Pixels no camera sees are 0.
         """
         self.update()
         self.last_frame_key = None
@@ -526,18 +530,17 @@ class LevelledView:
                 self._canvas = np.zeros(work, np.uint8) if len(shape) == 3 else self._out
             if self.renderer == 'grid' and not self._planes_hold(version):
                 if self._grid is None:
-                    assert self.attitude is not None
                     g = self.builder._grid
-                    self._grid = GridMaps(plan, self.builder,
-                                          self.builder.camera_rotations(*self.attitude),
-                                          g.cx, g.cy, tolerance_px=self.tolerance_px)
-                self._grid.render(self.shared_sources(), mosaic, version, self._out,
-                                  self._canvas, self._scratch)
-                self._last_version = version
-                return self._out
-            planes = self.shared_planes()
-            planes.prepare(mosaic, plan.needs, version)
-            plan.render(planes, self._out, self._canvas, self._scratch)
+                    self._grid = GridMaps(plan, self.builder, self.camera_rotations(), g.cx,
+                                          g.cy, tolerance_px=self.tolerance_px,
+                                          buffer=self._grid_buffer)
+                    self._grid_buffer = self._grid.buffer
+                canvas = self._canvas if len(shape) == 3 and four_channels() else self._out
+                self._grid.render(self.shared_sources(), mosaic, version, self._out, canvas)
+            else:
+                self.shared_planes().prepare(mosaic, plan.needs, version)
+                plan.render(cast(CameraPlanes, self.planes), self._out, self._canvas,
+                            self._scratch)
             self._last_version = version
             return self._out
         if self._map is None:

@@ -5,31 +5,36 @@ The :class:`~.view_warp.WarpPlan` of a pose splits the view into each camera's c
 region (eq. 6's half-planes, the camera's front and its frame's extent). Here the whole
 view is one ``cv2.remap`` from the mosaic of the cameras' own images (no undistorted
 plane in between: one resampling of the image, as the lookup renderer), through one map
-(view pixel -> mosaic pixel) made per pose from each camera's map, a smooth function of
-the view pixel over its region (the camera's homography, then its lens):
+(view pixel -> mosaic pixel) made per pose (:class:`GridMaps`); each camera's map is a
+smooth function of the view pixel over its region (its homography, then its lens):
 
-1. The camera's map is evaluated exactly on a coarse grid over the bounding box of its
-   region (:meth:`~.rig_projection.RigProjection._evaluate_soa` with that camera only:
-   the same ``K_i``, ``D_i`` as the panorama, no second copy), every
-   :data:`GRID_STEP_PX` view pixels, half a cell beyond the box on every side;
-2. ``cv2.resize`` (bilinear) spreads it to every pixel of the box: its sample positions
-   ``(x + 1/2) / s - 1/2`` fall exactly on the nodes' placement, and the half cell of
-   margin keeps the box's pixels off the resize's clamped border. The error of the
-   bilinear interpolation is measured against the exact lens by
-   ``test/panorama/test_view_grid.py`` (:data:`GRID_STEP_PX` is chosen for it);
-3. The box's pixels in the region (a ``cv2.fillPoly`` mask through every row's first and
-   last column) are copied into the view's map; rows some pixel of which no region holds
-   are ``OUTSIDE`` first. A pixel just beyond a camera's frame reads the mosaic's black
-   gap (``gap`` pixels: :attr:`~.mosaic.MosaicLayout.gap`), as the panorama's rule; a
-   node the lens cannot take or one mapped beyond the gap holds :data:`FAR`, so no pixel
-   reads a neighbour's image. A colour view is drawn in 4 channels (the cameras'
-   rectangles the maps reach converted once per frame set for all the views: OpenCV 5
-   remaps 8-bit 4-channel images from float maps about twice as fast as 3-channel ones,
-   OpenCV 4.6 about as fast) and converted back.
+1. The view is cut into cells of :data:`GRID_STEP_PX` pixels. Every camera is evaluated
+   exactly at the corners of the cells its region touches and at their centres
+   (:meth:`~.rig_projection.RigProjection._evaluate_soa`, each ray through its own
+   camera: the same ``K_i``, ``D_i`` as the panorama, no second copy);
+2. A cell inside one camera's region takes that camera's values at its corners, and one
+   ``cv2.resize`` (bilinear) per map plane spreads the node grid to every pixel: its
+   sample positions ``(x + 1/2) / s - 1/2`` fall exactly on the nodes' placement, and
+   half a cell of margin keeps the view off the resize's clamped border;
+3. The other cells (seams, frame edges) are filled pixel by pixel: each pixel of a
+   region gets the bilinear interpolation of its own camera's corner nodes (the
+   resize's weights), the rest ``OUTSIDE``. The error at the cells' centres is checked
+   against :data:`CHECK_FRACTION` of the tolerance; the grid halves (twice at most) where
+   it is exceeded, and cells still beyond it are evaluated exactly at every pixel.
+   ``test/panorama/test_view_grid.py`` measures every pixel against the exact lens.
+
+A pixel just beyond a camera's frame reads the mosaic's black gap (``gap`` pixels:
+:attr:`~.mosaic.MosaicLayout.gap`), as the panorama's rule; a node the lens cannot take
+or one mapped beyond the gap holds :data:`FAR`, so no pixel reads a neighbour's image.
+On OpenCV 5 a colour view is drawn in 4 channels (:data:`FOUR_CHANNELS_FROM`: the
+cameras' rectangles the maps reach converted once per frame set for all the views) and
+converted back.
 
 Per pose: the plan and the view's map (the part that moves with the view); per frame
 set: the 4-channel camera images; per frame: the remap.
 """
+from functools import lru_cache
+import math
 from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
@@ -43,13 +48,20 @@ tolerance)."""
 FAR = -1.0e8
 """A map node no pixel may read from: a pixel with any weight on it (at least
 ``1 / (2 s)^2`` at node spacing ``s``) lands far outside the mosaic."""
-FIXED_POINT_BEFORE = 5
-"""OpenCV major versions below this get each pose's map in 16-bit fixed point: OpenCV 4.6
-remaps an 8-bit 4-channel 1280x720 image from a fixed-point map about 0.6 ms faster than
-from a float map (the conversion costs 0.5 ms); OpenCV 5 remaps from the float map
-faster (1.9 against 2.5 ms)."""
+FOUR_CHANNELS_FROM = 5
+"""OpenCV major versions from this one remap a colour view in 4 channels: OpenCV 5.0
+remaps an 8-bit 4-channel 1280x720 image from a float map in 4.1 ms against 7.5 ms for
+3 channels (one thread), the conversions costing about 1 ms; OpenCV 4.6 takes 7.8 ms
+against 8.4 ms, so there the mosaic is remapped as it is."""
 CHECK_FRACTION = 0.75
 """Share of ``tolerance_px`` the error at a cell's centre may reach (as the lookup's)."""
+
+
+def four_channels() -> bool:
+    """Return True when a colour view is remapped in 4 channels (:data:`FOUR_CHANNELS_FROM`)."""
+    import cv2
+
+    return int(cv2.__version__.split('.')[0]) >= FOUR_CHANNELS_FROM
 
 
 class CameraSources:
@@ -103,6 +115,21 @@ class CameraSources:
         return self._buffer
 
 
+@lru_cache(maxsize=8)
+def _weights(step: int) -> np.ndarray:
+    """
+    Return the bilinear weights of a cell's ``step x step`` pixels, ``(4, step^2)``.
+
+    Rows: the corners (top left, top right, bottom left, bottom right); a pixel
+    ``(dy, dx)`` of the cell lies ``((dy + 1/2) / step, (dx + 1/2) / step)`` from its top
+    left node, as ``cv2.resize`` samples it.
+    """
+    t = (np.arange(step) + 0.5) / step
+    wy, wx = np.meshgrid(t, t, indexing='ij')
+    return np.stack([(1 - wy) * (1 - wx), (1 - wy) * wx, wy * (1 - wx), wy * wx]).reshape(
+        4, step * step).astype(np.float32)
+
+
 class GridMaps:
     """
     One map over one pose's view (view pixel -> mosaic pixel), each camera's part in it.
@@ -110,119 +137,318 @@ class GridMaps:
     ``plan`` is the pose's :class:`~.view_warp.WarpPlan`, ``projection`` the view's
     builder (:class:`~.rig_projection.RigProjection`) and ``rotations`` its camera
     rotations ``A_i`` (view pixel offsets -> camera ``i``) with the view's centre
-    ``(cx, cy)``. Each camera's interpolated map is copied into :attr:`map` through the
-    mask of its region; the rows no camera fully holds are first set to ``OUTSIDE``.
+    ``(cx, cy)``. The view is cut into cells of :attr:`step` pixels whose corners are the
+    nodes (view pixel ``(a s - 1/2, b s - 1/2)``); each camera is evaluated exactly at
+    the nodes of the cells its region touches and at their centres, to check the
+    interpolation's error (one :meth:`~.rig_projection.RigProjection._evaluate_soa` call
+    for all of them). A cell inside one camera's region (*pure*) takes that camera's
+    values at its corners, spread to every pixel by ``cv2.resize`` of the node grid; a
+    cell no region touches reads ``OUTSIDE``; the others -- seams, frame edges, and pure
+    cells a corner of which another kind of cell takes too -- are filled pixel by pixel,
+    each pixel of a region with the bilinear interpolation of its camera's nodes (the
+    resize's weights), the rest ``OUTSIDE``. The map is planar (:attr:`map_x`,
+    :attr:`map_y`: ``cv2.remap`` takes both; OpenCV 4.6 and 5.0 remap and resize planes
+    a little faster), windows of :attr:`buffer`, which may be reused for the next pose.
     """
 
     def __init__(self, plan: WarpPlan, projection: Any, rotations: np.ndarray, cx: float,
-                 cy: float, step: int = GRID_STEP_PX, tolerance_px: float = 0.1) -> None:
-        import cv2
-
+                 cy: float, step: int = GRID_STEP_PX, tolerance_px: float = 0.1,
+                 buffer: Optional[np.ndarray] = None) -> None:
         self.plan = plan
         self.worst_px = 0.0
         """The largest interpolation error found at the cells' centres (camera pixels)."""
-        self.map = np.empty((plan.height, plan.width, 2), np.float32)
-        """View pixel -> mosaic pixel (float32, ``OUTSIDE`` where no camera is)."""
-        self.rects: Dict[int, Rect] = {}  # camera: the pixels its map reaches
-        for r0, r1 in plan.blank_rows:
-            self.map[r0:r1] = OUTSIDE
-        layout = projection.layout
-        for i, (y0, lo, hi) in plan.regions.items():
-            box = (int(lo.min()), y0, int(hi.max()) + 1, y0 + len(lo))
-            for s in (step, step // 2, step // 4):
-                s = max(2, s)
-                coarse, error, rect = self._camera_map(projection, rotations, i, box, cx, cy,
-                                                       s, layout)
-                if error <= CHECK_FRACTION * tolerance_px:
-                    break
-            self.rects[i] = rect
-            self.worst_px = max(self.worst_px, error)
-            ny, nx = coarse.shape[:2]
-            fine = cv2.resize(coarse, (nx * s, ny * s), interpolation=cv2.INTER_LINEAR)
-            ox, oy = box[0] - s // 2, box[1] - s // 2
-            x0, x1, y1 = box[0], box[2], box[3]
-            mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            rows = np.arange(y1 - y0, dtype=np.int32)
-            edge = np.concatenate([np.stack([lo - x0, rows], axis=1),
-                                   np.stack([hi - x0, rows], axis=1)[::-1]])
-            cv2.fillPoly(mask, [edge.astype(np.int32)], 1)
-            cv2.copyTo(fine[y0 - oy:y1 - oy, x0 - ox:x1 - ox], mask, self.map[y0:y1, x0:x1])
-        self._fixed = cv2.convertMaps(self.map, cast(Any, None), cv2.CV_16SC2) \
-            if int(cv2.__version__.split('.')[0]) < FIXED_POINT_BEFORE else None
+        self._cams = np.array(sorted(plan.regions), np.intp)
+        self._layout = projection.layout
+        self._sizes = [(c.width, c.height) for c in projection.rig.cameras]
+        self._rects: Optional[Dict[int, Rect]] = None
+        self._lens = (projection, rotations, cx, cy)
+        limit = CHECK_FRACTION * tolerance_px
+        for s in sorted({max(2, (step >> k) & ~1) for k in range(3)}, reverse=True):
+            cells = self._cells(s)
+            values, far = self._evaluate(projection, rotations, cx, cy, s, cells[2])
+            if self.worst_px <= limit:
+                break
+        # cells still beyond the limit at the finest step are evaluated pixel by pixel
+        self._exact = self._cell_error > limit
+        self.exact_cells = int(self._exact.sum())
+        """How many (cell, camera) pairs are evaluated exactly at every pixel."""
+        self.step = s
+        """View pixels between the nodes (``step``, halved while a cell's error is too large)."""
+        shape = self.buffer_shape(plan.width, plan.height, s)
+        if buffer is None or buffer.shape != shape or buffer.dtype != np.float32:
+            buffer = np.empty(shape, np.float32)
+        self.buffer = buffer
+        h0 = s // 2
+        self.map_x = buffer[0, h0:h0 + plan.height, h0:h0 + plan.width]
+        """View pixel -> mosaic column (float32, ``OUTSIDE`` where no camera is)."""
+        self.map_y = buffer[1, h0:h0 + plan.height, h0:h0 + plan.width]
+        """View pixel -> mosaic row (float32)."""
+        self._values, self._far = values, far
+        self._assemble(*cells)
+        self._fill()
 
     @staticmethod
-    def _camera_map(projection: Any, rotations: np.ndarray, i: int, box: Rect, cx: float,
-                    cy: float, step: int, layout: Any) -> Tuple[np.ndarray, float, Rect]:
-        """
-        Return camera ``i``'s coarse map over ``box`` (mosaic pixels), its error and reach.
+    def buffer_shape(width: int, height: int, step: int) -> Tuple[int, int, int]:
+        """Return the shape of the resized node grid (x and y) for a view and a step."""
+        return (2, (-(-height // step) + 1) * step, (-(-width // step) + 1) * step)
 
-        Nodes at spacing ``step``; a node the lens cannot take (behind the camera, past
-        its validity limit) or one mapped beyond the gap around the camera's image holds
-        :data:`FAR`: every pixel of its cells then lands outside the mosaic (black), never
-        on a neighbour's image.
+    def _cells(self, s: int) -> Tuple[np.ndarray, ...]:
         """
-        x0, y0, x1, y1 = box
-        nx = -(-(x1 - x0 + step) // step)
-        ny = -(-(y1 - y0 + step) // step)
-        # node k at box pixel k s - 1/2: the resize's sample position of node k is fine
-        # pixel (k + 1/2) s - 1/2, the box starting at fine pixel s/2; the cells' centres
-        # are evaluated too, to bound the bilinear interpolation's error
-        us = (np.arange(nx) * step - 0.5 + x0 - cx).astype(np.float32)
-        vs = (np.arange(ny) * step - 0.5 + y0 - cy).astype(np.float32)
-        nodes, centres = nx * ny, (nx - 1) * (ny - 1)
-        rays = np.empty((3, nodes + centres), np.float32)
-        rays[0, :nodes].reshape(ny, nx)[:] = us
-        rays[1, :nodes].reshape(ny, nx)[:] = vs[:, None]
-        rays[0, nodes:].reshape(ny - 1, nx - 1)[:] = us[:-1] + 0.5 * step
-        rays[1, nodes:].reshape(ny - 1, nx - 1)[:] = vs[:-1, None] + 0.5 * step
+        Return ``(first, last, hit, full)`` at step ``s``.
+
+        Per camera (the plan's regions in order) and view row (padded to whole cells,
+        the rows below the view as its last) its region's first and last column, the
+        cells its region touches and those it fills.
+        """
+        plan = self.plan
+        width, height, cams = plan.width, plan.height, self._cams
+        nxc, nyc = -(-width // s), -(-height // s)
+        first = np.full((len(cams), nyc * s), width, np.int64)
+        last = np.full((len(cams), nyc * s), -1, np.int64)
+        for c, i in enumerate(cams):
+            y0, lo, hi = plan.regions[int(i)]
+            first[c, y0:y0 + len(lo)] = lo
+            last[c, y0:y0 + len(hi)] = hi
+        first[:, height:] = first[:, height - 1:height]
+        last[:, height:] = last[:, height - 1:height]
+        fc, lc = first.reshape(len(cams), nyc, s), last.reshape(len(cams), nyc, s)
+        left = np.arange(nxc) * s
+        right = np.minimum(left + s - 1, width - 1)
+        hit = (left <= lc.max(axis=2)[..., None]) & (right >= fc.min(axis=2)[..., None])
+        full = (left >= fc.max(axis=2)[..., None]) & (right <= lc.min(axis=2)[..., None])
+        return first, last, hit, full
+
+    def _evaluate(self, projection: Any, rotations: np.ndarray, cx: float, cy: float, s: int,
+                  hit: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return the cameras' nodes (mosaic pixels, ``(2, cameras, rows, columns)``) and far.
+
+        Each camera is evaluated at the corners of the cells it touches; a node not
+        evaluated, one the lens cannot take (behind the camera, past its validity
+        limit) or one mapped beyond the gap around the camera's image holds :data:`FAR`
+        (far: True). Sets :attr:`worst_px` from the cells' centres.
+        """
+        cams = self._cams
+        nyc, nxc = hit.shape[1:]
+        need = np.zeros((len(cams), nyc + 1, nxc + 1), bool)
+        for db in (0, 1):
+            for da in (0, 1):
+                need[:, db:db + nyc, da:da + nxc] |= hit
+        nc, nb, na = np.nonzero(need)
+        hc, hb, ha = np.nonzero(hit)
+        count = nb.size
+        rays = np.empty((3, count + hb.size), np.float32)
+        rays[0, :count] = na * s - 0.5 - cx
+        rays[1, :count] = nb * s - 0.5 - cy
+        rays[0, count:] = ha * s + (0.5 * s - 0.5) - cx
+        rays[1, count:] = hb * s + (0.5 * s - 0.5) - cy
         rays[2] = 1.0
-        _, px, py, side = projection._evaluate_soa(rays, rotations, only=i)
+        label = cams[np.concatenate([nc, hc])]
+        _, px, py, side = projection._evaluate_soa(rays, rotations, only=label)
         bad = (side & 16) != 0
-        b = bad[:nodes].reshape(ny, nx)
-        good = ~(b[:-1, :-1] | b[1:, :-1] | b[:-1, 1:] | b[1:, 1:] |
-                 bad[nodes:].reshape(ny - 1, nx - 1))
-        error = 0.0
-        for q in (px, py):  # the bilinear value at a cell's centre against the exact one
-            c = q[:nodes].reshape(ny, nx)
-            e = np.abs(0.25 * (c[:-1, :-1] + c[1:, :-1] + c[:-1, 1:] + c[1:, 1:])
-                       - q[nodes:].reshape(ny - 1, nx - 1))
-            error = max(error, float(e[good].max(initial=0.0)))
-        coarse = np.empty((ny, nx, 2), np.float32)
-        coarse[..., 0] = px[:nodes].reshape(ny, nx)
-        coarse[..., 1] = py[:nodes].reshape(ny, nx)
-        w, h = projection.rig.cameras[i].width, projection.rig.cameras[i].height
-        ok = ~b
-        if ok.any():  # the camera pixels the map can reach, with the bilinear taps
-            xs, ys = coarse[..., 0][ok], coarse[..., 1][ok]
-            rect = (min(w, max(0, int(np.floor(xs.min())))),
-                    min(h, max(0, int(np.floor(ys.min())))),
-                    max(0, min(w, int(np.floor(xs.max())) + 2)),
-                    max(0, min(h, int(np.floor(ys.max())) + 2)))
-        else:
-            rect = (0, 0, 0, 0)
-        # beyond the gap (less a tap) a pixel would read a neighbour's image: such a
-        # node is far out; the pixels of its cells lie beyond the frame by more than the
-        # bilinear taps reach (a cell spanning fewer camera pixels than the gap), black
-        # in the camera's own image as well
-        reach = layout.gap - 2.0
-        beyond = (coarse[..., 0] < -reach) | (coarse[..., 0] > w - 1 + reach) | \
-            (coarse[..., 1] < -reach) | (coarse[..., 1] > h - 1 + reach)
-        coarse += np.asarray(layout.offsets[i], np.float32)
-        coarse[b | beyond] = FAR
-        return coarse, error, rect
+        # the bilinear interpolation at each cell's centre against the exact value,
+        # where the cell's corners and centre have pixels
+        nodes = np.zeros((2,) + need.shape, np.float32)
+        nodes[:, nc, nb, na] = px[:count], py[:count]
+        centres = np.zeros((2,) + hit.shape, np.float32)
+        centres[:, hc, hb, ha] = px[count:], py[count:]
+        invalid = np.ones(need.shape, bool)
+        invalid[nc, nb, na] = bad[:count]
+        good = np.zeros(hit.shape, bool)
+        good[hc, hb, ha] = ~bad[count:]
+        good &= ~(invalid[:, :-1, :-1] | invalid[:, 1:, :-1] | invalid[:, :-1, 1:] |
+                  invalid[:, 1:, 1:])
+        error = np.abs(0.25 * (nodes[:, :, :-1, :-1] + nodes[:, :, 1:, :-1] +
+                               nodes[:, :, :-1, 1:] + nodes[:, :, 1:, 1:]) - centres)
+        self._cell_error = np.where(good, error.max(axis=0), 0.0)
+        self.worst_px = float(self._cell_error.max(initial=0.0))
+        x, y, far_node = self._mosaic_pixels(projection, label[:count], px[:count],
+                                             py[:count], bad[:count])
+        values = np.full(nodes.shape, FAR, np.float32)
+        values[:, nc, nb, na] = x, y
+        far = np.ones(need.shape, bool)
+        far[nc, nb, na] = far_node
+        return values, far
 
-    def render(self, sources: CameraSources, mosaic: np.ndarray, version: Any,
-               out: np.ndarray, canvas: np.ndarray, scratch: np.ndarray) -> None:
-        """Fill ``out`` from the cameras' images by one remap (``canvas`` as the warp's)."""
+    def _mosaic_pixels(self, projection: Any, label: np.ndarray, x: np.ndarray,
+                       y: np.ndarray, bad: np.ndarray) -> Tuple[np.ndarray, ...]:
+        """
+        Return camera pixels ``(x, y)`` of cameras ``label`` in the mosaic, and where far.
+
+        Beyond the gap (less a tap) a pixel would read a neighbour's image: such a node is
+        far out (:data:`FAR`), as one the lens cannot take (``bad``); the pixels of its
+        cells lie beyond the frame by more than the bilinear taps reach (a cell spanning
+        fewer camera pixels than the gap), black in the camera's own image as well.
+        """
+        reach = self._layout.gap - 2.0
+        size = projection._sizes[label]
+        far = bad | (x < -reach) | (x > size[:, 0] - 1.0 + reach) | \
+            (y < -reach) | (y > size[:, 1] - 1.0 + reach)
+        offsets = np.asarray(self._layout.offsets, np.float32)[label]
+        return (np.where(far, FAR, x + offsets[:, 0]), np.where(far, FAR, y + offsets[:, 1]),
+                far)
+
+    def _assemble(self, first: np.ndarray, last: np.ndarray, hit: np.ndarray,
+                  full: np.ndarray) -> None:
+        """Decide the nodes' values (:attr:`nodes`) and the cells filled pixel by pixel."""
+        nyc, nxc = hit.shape[1:]
+        empty = len(self._cams)  # the code of a cell no region touches
+        count = hit.sum(axis=0)
+        code = np.where(count > 0, -1, empty).astype(np.int16)  # -1: pixel by pixel
+        pc, pb, pa = np.nonzero(full & (count == 1) & ~self._exact.any(axis=0))
+        code[pb, pa] = pc
+        owner = self._owners(code, empty)
+        ob, oa = np.nonzero((owner >= 0) & (owner < empty))
+        self.nodes = np.full((2, nyc + 1, nxc + 1), OUTSIDE, np.float32)
+        """The node grid :attr:`buffer` is resized from: x and y (mosaic pixels)."""
+        self.nodes[:, ob, oa] = self._values[:, owner[ob, oa], ob, oa]
+        self._used = np.zeros(self._far.shape, bool)  # the nodes the map interpolates
+        self._used[owner[ob, oa], ob, oa] = True
+        fb, fa = np.nonzero(code < 0)
+        self._fix = (fb, fa, self._by_pixel(first, last, hit, fb, fa))
+
+    @staticmethod
+    def _owners(code: np.ndarray, empty: int) -> np.ndarray:
+        """
+        Return each node's owner: the camera (or ``empty``) of the cells that take it, or -1.
+
+        A node that two kinds of cells would take (two cameras, or a camera and none)
+        sends the cells around it pixel by pixel (``code`` -1, changed in place).
+        """
+        nyc, nxc = code.shape
+        high = np.full((nyc + 2, nxc + 2), -1, np.int16)
+        low = np.full((nyc + 2, nxc + 2), empty + 1, np.int16)
+        high[1:-1, 1:-1] = code
+        low[1:-1, 1:-1] = np.where(code >= 0, code, empty + 1)
+        top = np.maximum(np.maximum(high[:-1, :-1], high[1:, :-1]),
+                         np.maximum(high[:-1, 1:], high[1:, 1:]))
+        bottom = np.minimum(np.minimum(low[:-1, :-1], low[1:, :-1]),
+                            np.minimum(low[:-1, 1:], low[1:, 1:]))
+        clash = (top >= 0) & (bottom != top)
+        if not clash.any():
+            return top
+        # the cells around a clash go pixel by pixel: their other nodes lose a taker and
+        # no node gains one, so no new clash arises
+        code[clash[:-1, :-1] | clash[1:, :-1] | clash[:-1, 1:] | clash[1:, 1:]] = -1
+        high[1:-1, 1:-1] = code
+        return np.maximum(np.maximum(high[:-1, :-1], high[1:, :-1]),
+                          np.maximum(high[:-1, 1:], high[1:, 1:]))
+
+    def _by_pixel(self, first: np.ndarray, last: np.ndarray, hit: np.ndarray,
+                  fb: np.ndarray, fa: np.ndarray) -> np.ndarray:
+        """
+        Return the map over cells ``(fb, fa)``, ``(2, cells, s, s)``, pixel by pixel.
+
+        For each (cell, camera) pair the bilinear interpolation of the camera's corner
+        nodes with the resize's weights (one ``cv2.gemm``: pairs x 4 corners times 4 x
+        pixels), kept where the camera's region holds the pixel (0 elsewhere); the
+        regions are disjoint, so a cell's pairs add up; a pixel no pair holds is
+        ``OUTSIDE``.
+        """
         import cv2
 
-        for i, rect in self.rects.items():
-            sources.get(mosaic, i, rect, version)
-        if self._fixed is not None:
-            m1, m2 = self._fixed
-        else:
-            m1, m2 = self.map, cast(Any, None)
-        cv2.remap(sources.image(mosaic), m1, m2, cv2.INTER_LINEAR, dst=canvas,
+        s = self.step
+        values = np.full((2, fb.size, s * s), OUTSIDE, np.float32)
+        pk, pc = np.nonzero(hit[:, fb, fa].T)  # (cell, camera) pairs, by cell
+        if not pk.size:
+            return values.reshape(2, fb.size, s, s)
+        b, a = fb[pk], fa[pk]
+        corners = np.empty((2, pk.size, 4), np.float32)  # x/y, pair, corner
+        for db in (0, 1):
+            for da in (0, 1):
+                self._used[pc, b + db, a + da] = True
+                corners[:, :, 2 * db + da] = self._values[:, pc, b + db, a + da]
+        inner = cv2.gemm(corners.reshape(-1, 4), _weights(s), 1.0, cast(Any, None), 0.0)
+        span = np.arange(s)
+        exact = np.flatnonzero(self._exact[pc, b, a])
+        if exact.size:  # the lens at every pixel of these pairs' cells
+            projection, rotations, cx, cy = self._lens
+            u = (a[exact, None, None] * s + span - cx).astype(np.float32)
+            v = (b[exact, None, None] * s + span[:, None] - cy).astype(np.float32)
+            rays = np.stack(np.broadcast_arrays(u, v, np.float32(1.0))).reshape(3, -1)
+            label = np.repeat(self._cams[pc[exact]], s * s)
+            _, x, y, side = projection._evaluate_soa(np.ascontiguousarray(rays), rotations,
+                                                     only=label)
+            x, y, _ = self._mosaic_pixels(projection, label, x, y, (side & 16) != 0)
+            inner = inner.reshape(2, pk.size, s * s)
+            inner[:, exact] = np.stack([x, y]).reshape(2, exact.size, s * s)
+        rows = b[:, None] * s + span  # (pairs, s)
+        cols = (a[:, None] * s + span)[:, None, :]
+        inside = ((first[pc[:, None], rows][:, :, None] <= cols) &
+                  (cols <= last[pc[:, None], rows][:, :, None])).reshape(pk.size, s * s)
+        inner = inner.reshape(2, pk.size, s * s) * inside  # 0 outside its region
+        rank = np.arange(pk.size) - np.searchsorted(pk, pk)  # a cell's pairs: 0, 1, ...
+        one = rank == 0
+        total: np.ndarray = inner[:, one]
+        held = inside[one]
+        place = np.cumsum(one) - 1  # each pair's cell among those with pairs
+        for r in range(1, int(rank.max()) + 1):  # rarely more than one more
+            one = rank == r
+            total[:, place[one]] += inner[:, one]
+            held[place[one]] |= inside[one]
+        values[:, pk[rank == 0]] = np.where(held, total, np.float32(OUTSIDE))
+        return values.reshape(2, fb.size, s, s)
+
+    def _fill(self) -> None:
+        """Resize the node grid into :attr:`buffer`, then write the pixel by pixel cells."""
+        import cv2
+
+        s, buffer = self.step, self.buffer
+        h0 = s // 2
+        nyc, nxc = self.nodes.shape[1] - 1, self.nodes.shape[2] - 1
+        for plane, nodes in zip(buffer, self.nodes):
+            cv2.resize(nodes, (plane.shape[1], plane.shape[0]), dst=plane,
+                       interpolation=cv2.INTER_LINEAR)
+        fb, fa, values = self._fix
+        if fb.size:
+            rs, cs = buffer.strides[1:]
+            for plane, v in zip(buffer, values):
+                blocks = np.lib.stride_tricks.as_strided(
+                    plane[h0:, h0:], (nyc, s, nxc, s), (s * rs, rs, s * cs, cs))
+                blocks[fb, :, fa] = v
+
+    def full_map(self) -> np.ndarray:
+        """Return the map as one ``(H, W, 2)`` float32 array (a copy of :attr:`map_x`, ``_y``)."""
+        return np.stack([self.map_x, self.map_y], axis=-1)
+
+    @property
+    def rects(self) -> Dict[int, Rect]:
+        """Return per camera the rectangle of its image the map reads (with the taps)."""
+        if self._rects is None:
+            self._rects = {}
+            ok = self._used & ~self._far
+            offsets = np.asarray(self._layout.offsets, np.float32)[self._cams]
+            local = self._values - offsets.T[:, :, None, None]
+            low = np.where(ok, local, np.inf).min(axis=(2, 3))
+            high = np.where(ok, local, -np.inf).max(axis=(2, 3))
+            for c, i in enumerate(int(k) for k in self._cams):
+                w, h = self._sizes[i]
+                if not np.isfinite(low[0, c]):
+                    self._rects[i] = (0, 0, 0, 0)
+                    continue
+                x0, y0, x1, y1 = (int(math.floor(e))
+                                  for e in (low[0, c], low[1, c], high[0, c], high[1, c]))
+                self._rects[i] = (min(w, max(0, x0)), min(h, max(0, y0)),
+                                  max(0, min(w, x1 + 2)), max(0, min(h, y1 + 2)))
+        return self._rects
+
+    def render(self, sources: CameraSources, mosaic: np.ndarray, version: Any,
+               out: np.ndarray, canvas: np.ndarray) -> None:
+        """
+        Fill ``out`` from the cameras' images by one remap.
+
+        ``canvas`` is ``out`` to remap the mosaic as it is, else a 4-channel buffer: the
+        cameras' images are then read in 4 channels (``sources``) and the canvas is
+        converted to ``out`` (:func:`four_channels`).
+        """
+        import cv2
+
+        source, target = mosaic, out
+        if canvas is not out:
+            for i, rect in self.rects.items():
+                sources.get(mosaic, i, rect, version)
+            source, target = sources.image(mosaic), canvas
+        cv2.remap(source, self.map_x, self.map_y, cv2.INTER_LINEAR, dst=target,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         if canvas is not out:
             cv2.cvtColor(canvas, cv2.COLOR_BGRA2BGR, dst=out)

@@ -196,10 +196,11 @@ class WarpPlan:
         self.rotations = a
         """``A_i`` with the shift: view pixel ``(u, v, 1)`` -> camera ``i`` (n, 3, 3)."""
         self._parts: Optional[List[Part]] = None
-        self.needs: Dict[int, Rect] = {}
+        self._planes = planes
+        self._needs: Optional[Dict[int, Rect]] = None
+        self._homographies: Dict[int, np.ndarray] = {}
         self.regions: Dict[int, Tuple[int, np.ndarray, np.ndarray]] = {}
         """Camera ``i``'s region: first row ``y0`` and per row its first and last column."""
-        self.homographies: Dict[int, np.ndarray] = {}  # camera: view pixel -> plane pixel
         z = a[:, 2]
         ext = np.asarray(planes.extents)  # (n, 4): x0, x1, y0, y1
         front = z.copy()
@@ -209,58 +210,88 @@ class WarpPlan:
             (a[:, 0] - ext[:, 0:1] * z)[:, None], (ext[:, 1:2] * z - a[:, 0])[:, None],
             (a[:, 1] - ext[:, 2:3] * z)[:, None], (ext[:, 3:4] * z - a[:, 1])[:, None]],
             axis=1)  # (n, 1 + n + 4, 3); camera i against itself: 0 >= 0, always true
-        # a camera whose region misses the view (all four corners beyond one of its
-        # half-planes) is left out before the row by row work
         corners = np.array([[-0.5, -0.5, 1.0], [width - 0.5, -0.5, 1.0],
                             [-0.5, height - 0.5, 1.0], [width - 0.5, height - 0.5, 1.0]])
-        keep = ~((lines @ corners.T) < 0).all(axis=2).any(axis=1)
-        cams = np.nonzero(keep)[0]
-        first = np.full(height, width, np.int64)
-        last = np.full(height, -1, np.int64)
-        widths = np.zeros(height, np.int64)
-        lines = lines[cams]
+        at_corners = lines @ corners.T  # (n, lines, 4)
+        tiny = 1e-12 * (np.abs(lines).sum(axis=2) + 1e-300)
+        # a camera whose region misses the view (all four corners beyond one of its
+        # half-planes) is left out; a half-plane holding the whole view (every corner
+        # farther in than ``tiny``) bounds no row: only the others are worked row by row
+        keep = ~(at_corners < 0).all(axis=2).any(axis=1)
+        active = (at_corners.min(axis=2) <= tiny) & keep[:, None]
+        cam_of, line_of = np.nonzero(active)
+        active_lines = lines[cam_of, line_of]  # (m, 3)
         v = np.arange(height, dtype=float)
-        coef = lines[..., 0:1]
-        rest = lines[..., 1:2] * v + lines[..., 2:3]  # (n, lines, rows)
-        tiny = 1e-12 * (np.abs(lines).sum(axis=2, keepdims=True) + 1e-300)
+        coef = active_lines[:, 0:1]
+        rest = active_lines[:, 1:2] * v + active_lines[:, 2:3]  # (m, rows)
+        small = tiny[cam_of, line_of][:, None]
         with np.errstate(divide='ignore', invalid='ignore'):
             bound = -rest / coef
-        lo = np.where(coef > tiny, np.ceil(bound), 0.0).max(axis=1)
-        hi = np.where(coef < -tiny, np.floor(bound), width - 1.0).min(axis=1)
-        flat_out = ((np.abs(coef) <= tiny) & (rest < 0)).any(axis=1)
-        lo = np.maximum(lo, 0.0)
-        hi = np.minimum(hi, width - 1.0)
-        hi[flat_out] = -1.0
-        for c, i in enumerate(int(k) for k in cams):
-            rows = np.nonzero(lo[c] <= hi[c])[0]
+        lo_all = np.where(coef > small, np.ceil(bound), 0.0)
+        hi_all = np.where(coef < -small, np.floor(bound), width - 1.0)
+        hi_all[(np.abs(coef) <= small) & (rest < 0)] = -1.0
+        starts = np.searchsorted(cam_of, np.arange(len(a) + 1))
+        for i in np.flatnonzero(keep):
+            lo = np.maximum(lo_all[starts[i]:starts[i + 1]].max(axis=0, initial=0.0), 0.0)
+            hi = np.minimum(hi_all[starts[i]:starts[i + 1]].min(axis=0, initial=width - 1.0),
+                            width - 1.0)
+            rows = np.flatnonzero(lo <= hi)
             if rows.size == 0:
                 continue
-            y0, y1 = int(rows[0]), int(rows[-1]) + 1
-            li, hi_i = lo[c, y0:y1].astype(np.int32), hi[c, y0:y1].astype(np.int32)
-            h = planes.intrinsics[i] @ a[i]  # view pixel -> plane pixel
-            # the plane rectangle the region needs (the hull of its rows' ends, mapped),
-            # with the bilinear taps
-            ends = np.stack([np.concatenate([li, hi_i]).astype(float),
-                             np.tile(np.arange(y0, y1, dtype=float), 2),
-                             np.ones(2 * (y1 - y0))])
-            mapped = h @ ends
-            px, py = mapped[0] / mapped[2], mapped[1] / mapped[2]
-            pw, ph = planes.sizes[i]
-            need = (max(0, int(math.floor(px.min())) - 2), max(0, int(math.floor(py.min())) - 2),
-                    min(pw, int(math.ceil(px.max())) + 3), min(ph, int(math.ceil(py.max())) + 3))
-            if need[2] <= need[0] or need[3] <= need[1]:
-                continue
-            self.needs[i] = need
-            self.regions[i] = (y0, li, hi_i)
-            self.homographies[i] = h
-            np.minimum(first[y0:y1], li, out=first[y0:y1])
-            np.maximum(last[y0:y1], hi_i, out=last[y0:y1])
-            widths[y0:y1] += hi_i - li + 1
-        short = (first > 0) | (last < width - 1) | (widths < width)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], short.view(np.int8), [0]])))
-        self.blank_rows = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
-        """Runs of rows ``[r0, r1)`` some pixel of which no camera's region holds."""
+            y0, y1 = int(rows[0]), int(rows[-1]) + 1  # a convex region: one run of rows
+            self.regions[int(i)] = (y0, lo[y0:y1].astype(np.int32), hi[y0:y1].astype(np.int32))
+        self._blank_rows: Optional[List[Tuple[int, int]]] = None
         self._masks: Dict[int, np.ndarray] = {}
+
+    def homography(self, i: int) -> np.ndarray:
+        """Return camera ``i``'s homography: view pixel -> pixel of its undistorted plane."""
+        h = self._homographies.get(i)
+        if h is None:
+            h = self._homographies[i] = self._planes.intrinsics[i] @ self.rotations[i]
+        return h
+
+    @property
+    def needs(self) -> Dict[int, Rect]:
+        """
+        Return per camera the rectangle of its plane the regions read (made on first use).
+
+        The hull of its rows' ends mapped into the plane, with the bilinear taps.
+        """
+        if self._needs is None:
+            self._needs = {}
+            for i, (y0, li, hi_i) in self.regions.items():
+                y1 = y0 + len(li)
+                ends = np.stack([np.concatenate([li, hi_i]).astype(float),
+                                 np.tile(np.arange(y0, y1, dtype=float), 2),
+                                 np.ones(2 * (y1 - y0))])
+                mapped = self.homography(i) @ ends
+                px, py = mapped[0] / mapped[2], mapped[1] / mapped[2]
+                pw, ph = self._planes.sizes[i]
+                need = (max(0, int(math.floor(px.min())) - 2),
+                        max(0, int(math.floor(py.min())) - 2),
+                        min(pw, int(math.ceil(px.max())) + 3),
+                        min(ph, int(math.ceil(py.max())) + 3))
+                if need[2] > need[0] and need[3] > need[1]:
+                    self._needs[i] = need
+        return self._needs
+
+    @property
+    def blank_rows(self) -> List[Tuple[int, int]]:
+        """Return the runs of rows ``[r0, r1)`` some pixel of which no camera's region holds."""
+        if self._blank_rows is None:
+            width, height = self.width, self.height
+            first = np.full(height, width, np.int64)
+            last = np.full(height, -1, np.int64)
+            widths = np.zeros(height, np.int64)
+            for y0, li, hi_i in self.regions.values():
+                y1 = y0 + len(li)
+                np.minimum(first[y0:y1], li, out=first[y0:y1])
+                np.maximum(last[y0:y1], hi_i, out=last[y0:y1])
+                widths[y0:y1] += hi_i - li + 1
+            short = (first > 0) | (last < width - 1) | (widths < width)
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], short.view(np.int8), [0]])))
+            self._blank_rows = [(int(r0), int(r1)) for r0, r1 in zip(edges[::2], edges[1::2])]
+        return self._blank_rows
 
     @property
     def parts(self) -> List[Part]:
@@ -274,7 +305,9 @@ class WarpPlan:
         if self._parts is None:
             self._parts = []
             for i, (y0, li, hi_i) in self.regions.items():
-                h = self.homographies[i]
+                if i not in self.needs:
+                    continue
+                h = self.homography(i)
                 y1 = y0 + len(li)
                 # per band of rows, the columns every row of the band holds are drawn
                 # straight; the slivers left and right of them through a mask of the pixels

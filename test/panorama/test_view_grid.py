@@ -23,7 +23,7 @@ def test_grid_maps_match_the_exact_lens_within_tolerance(az, el, fov):
     grid = view._grid
     assert grid is not None and grid.plan.regions
     exact = view.builder.build_exact(*view.attitude)
-    got = grid.map
+    got = grid.full_map()
     ok = exact[..., 0] != OUTSIDE
     assert ok.sum() > 0.3 * 480 * 320
     worst = float(np.abs(got - exact)[ok].max())
@@ -103,3 +103,94 @@ def test_grey_views_drawn_direct_match_the_lookup():
     inside = lookup.lookup()[..., 0] != OUTSIDE
     assert (a[~inside] == 0).all()
     assert np.abs(a - b)[inside].mean() < 1.0 and np.percentile(np.abs(a - b)[inside], 99) < 8
+
+
+def test_grid_maps_over_random_poses_and_sizes():
+    """Random poses, attitudes and sizes (odd ones too): every pixel within tolerance."""
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, mount_error_deg=0.5, seed=3)
+    mosaic = ViewMosaic(rig)
+    rng = np.random.default_rng(7)
+    for _ in range(12):
+        width, height = int(rng.integers(40, 300)), int(rng.integers(30, 200))
+        pose = ViewPose.from_degrees(rng.uniform(-180, 180), rng.uniform(-40, 40),
+                                     rng.uniform(30, 110))
+        view = LevelledView(rig, mosaic.layout, width, height, pose, renderer='grid')
+        view.set_attitude(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2))
+        view.render(mosaic.image, 1)
+        grid = view._grid
+        assert grid is not None
+        exact = view.builder.build_exact(*view.attitude)
+        got = grid.full_map()
+        ok = exact[..., 0] != OUTSIDE
+        if ok.any():
+            assert float(np.abs(got - exact)[ok].max()) <= view.tolerance_px
+        x, y = got[~ok][:, 0], got[~ok][:, 1]
+        for (ox, oy), cam in zip(mosaic.layout.offsets, rig.cameras):
+            assert not ((x > ox) & (x < ox + cam.width - 1) & (y > oy) &
+                        (y < oy + cam.height - 1)).any()
+
+
+def test_regions_are_the_cameras_eq6_pixels():
+    """Each region holds exactly the pixels whose eq. 6 camera sees them in its plane."""
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, mount_error_deg=0.5, seed=3)
+    mosaic = ViewMosaic(rig)
+    rng = np.random.default_rng(8)
+    planes = None
+    for _ in range(40):
+        width, height = int(rng.integers(16, 260)), int(rng.integers(16, 200))
+        pose = ViewPose.from_degrees(rng.uniform(-180, 180), rng.uniform(-90, 90),
+                                     rng.uniform(0.5, 170))
+        view = LevelledView(rig, mosaic.layout, width, height, pose, planes=planes)
+        view.set_attitude(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5))
+        plan = view.plan()
+        planes = view.planes
+        owner = np.full((height, width), -1)
+        for i, (y0, lo, hi) in plan.regions.items():
+            for row, (a, b) in enumerate(zip(lo, hi)):
+                assert (owner[y0 + row, a:b + 1] == -1).all()
+                owner[y0 + row, a:b + 1] = i
+        u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
+        p = np.stack([u, v, np.ones_like(u)])
+        rays = np.einsum('nij,jhw->nihw', plan.rotations, p)  # every camera
+        z = rays[:, 2]
+        label = z.argmax(axis=0)
+        zl = np.take_along_axis(z, label[None], 0)[0]
+        xn = np.take_along_axis(rays[:, 0], label[None], 0)[0] / zl
+        yn = np.take_along_axis(rays[:, 1], label[None], 0)[0] / zl
+        ext = np.asarray(planes.extents)[label]
+        want = (zl > 0) & (xn >= ext[..., 0]) & (xn <= ext[..., 1]) & \
+            (yn >= ext[..., 2]) & (yn <= ext[..., 3])
+        expected = np.where(want, label, -1)
+        # pixels within rounding of a boundary may go either way
+        second = np.sort(z, axis=0)[-2] if len(z) > 1 else -np.inf
+        near = (np.abs(zl - second) < 1e-9 * np.abs(z).max(axis=0)) | (np.abs(zl) < 1e-6)
+        for k, (lo_e, hi_e) in enumerate([(0, 1), (2, 3)]):
+            q = (xn, yn)[k]
+            near |= (np.abs(q - ext[..., lo_e]) < 1e-9) | (np.abs(q - ext[..., hi_e]) < 1e-9)
+        assert (owner == expected)[~near].all()
+
+
+def test_evaluate_takes_a_camera_per_ray():
+    """``only`` as an array: each ray through its own camera, as one camera at a time."""
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, seed=2)
+    mosaic = ViewMosaic(rig)
+    view = LevelledView(rig, mosaic.layout, 200, 100, ViewPose.from_degrees(20, 5, 60))
+    view.set_attitude(0.1, -0.05)
+    rotations = view.camera_rotations()
+    rng = np.random.default_rng(9)
+    rays = np.ascontiguousarray(rng.uniform(-150, 150, (3, 500)).astype(np.float32))
+    rays[2] = 1.0
+    cams = rng.integers(0, 5, 500)
+    label, px, py, side = view.builder._evaluate_soa(rays, rotations, only=cams)
+    assert (label == cams).all()
+    for i in range(5):
+        one = cams == i
+        _, qx, qy, qside = view.builder._evaluate_soa(rays[:, one], rotations, only=i)
+        assert (qside == side[one]).all()
+        ok = (qside & 16) == 0
+        np.testing.assert_allclose(px[one][ok], qx[ok], rtol=1e-5, atol=1e-3)
+        np.testing.assert_allclose(py[one][ok], qy[ok], rtol=1e-5, atol=1e-3)
+    # one camera's rotations with a camera per ray: the same as that camera for all
+    _, px, _, side = view.builder._evaluate_soa(rays, rotations[2:3], only=np.zeros(500, int))
+    _, qx, _, qside = view.builder._evaluate_soa(rays, rotations[2:3])
+    assert (side == qside).all() and (px == qx)[(side & 16) == 0].all()
