@@ -23,8 +23,9 @@ other processes on a shared machine). Rows are measured in turns, ``--rounds`` t
 Part 2, views beside the ``stitcher`` on the same rig (its panorama at the rig's
 resolution, attitude fixed): CPU time per frame set of the stitcher, of copying the frame
 set into the views' mosaic, and of N views rendered and JPEG-encoded as ``accelcal
-serve`` sends them (q80, ``cv2.imencode``), still and moving, N = 1, 2, 4, 6. On a 2-core
-machine a 25 Hz frame set has 2 x 40 = 80 CPU ms: N views fit when the total does. Then
+serve`` sends them (q80, :func:`accelcal_ros.jpeg.encode_jpeg`: simplejpeg when
+installed), still and moving, N = 1, 2, 4, 6. On a 2-core machine a 25 Hz frame set
+has 2 x 40 = 80 CPU ms: N views fit when the total does. Then
 the same work run at once, the stitcher in one thread and the views in a pool of two
 (as the stitcher's view thread and ``accelcal serve`` do), unpaced, for ``--frames``
 frame sets: frame sets per second reached (>= 25: N views at 25 Hz fit on this machine,
@@ -38,6 +39,7 @@ import os
 import statistics
 import time
 
+from accelcal_ros.jpeg import encode_jpeg, encoder
 from accelcal_ros.panorama import render as scene_render
 from accelcal_ros.panorama.horizon_study import REFERENCE_PITCH_RAD, study_rig
 from accelcal_ros.panorama.params import panorama_size
@@ -162,7 +164,7 @@ def part2(args, rig, images, pitch):
                 i = int(name[1:])
                 view.set_pose(ViewPose.from_degrees(-60 + 24 * i + 0.5 * (k % 20), 0, 60))
             image = views.render_view(view)
-        cv2.imencode('.jpg', image, [cv2.IMWRITE_JPEG_QUALITY, 80])
+        encode_jpeg(image, 80)
 
     def stitch_job(k):
         stitcher.update(0.0, pitch, frame_sets[k % 4])
@@ -186,7 +188,7 @@ def part2(args, rig, images, pitch):
         cpu[move] = (per_set - copy_ms) / 6
     print(f'\n  beside the stitcher {width}x{height} ({load()}), CPU ms per frame set '
           f'(1 OpenCV thread): stitcher {stitch_ms:.1f}, frame set into the views mosaic '
-          f'{copy_ms:.1f}, one {args.width}x{args.height} view + JPEG q80: still '
+          f'{copy_ms:.1f}, one {args.width}x{args.height} view + JPEG q80 ({encoder()}): still '
           f'{cpu[False]:.1f}, moving {cpu[True]:.1f}')
     print('  N views | CPU ms/frame set still | moving | of 80 (2 cores x 40 ms) | '
           'run at once: frame sets/s still | moving')

@@ -49,6 +49,7 @@ import time
 from accelcal_ros.camera.rig import load_rig, resolve_imu_to_camera
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
+from accelcal_ros.jpeg import encode_jpeg
 from accelcal_ros.panorama.frame_sets import FrameSetPolicy, FrameSetWorker
 from accelcal_ros.panorama.params import panorama_size, STITCHER_PARAMS
 from accelcal_ros.panorama.pipeline import PipelinedStitcher
@@ -313,19 +314,13 @@ class StitcherNode(Node):
 
     def _publish_compressed(self, panorama, sec, nanosec):
         """JPEG of the panorama as image_transport's ``compressed`` sends it."""
-        cv2 = self._cv2
-        image = cv2.cvtColor(panorama, cv2.COLOR_RGB2BGR) if self.encoding == 'rgb8' \
-            else panorama
-        ok, jpeg = cv2.imencode('.jpg', image,
-                                [cv2.IMWRITE_JPEG_QUALITY, self.params['jpeg_quality']])
-        if not ok:
-            raise InputError('JPEG encoding of the panorama failed')
+        jpeg = encode_jpeg(panorama, self.params['jpeg_quality'], rgb=self.encoding == 'rgb8')
         msg = CompressedImage()
         msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
         msg.header.frame_id = self.params['frame_id']
         target = 'mono8' if self.encoding == 'mono8' else 'bgr8'
         msg.format = f'{self.encoding}; jpeg compressed {target}'
-        msg.data = jpeg.tobytes()
+        msg.data = jpeg
         self.compressed.publish(msg)
 
     # -- diagnostics ----------------------------------------------------------------------

@@ -6,7 +6,7 @@ WebSocket and is given a view of its own in a :class:`~.view_set.ViewSet` (all v
 share one mosaic of the current frame set). The page sends the pose as JSON
 (``{"az": deg, "el": deg, "fov": deg}``: drag to pan, wheel to zoom, ``r``/Home to
 reset, arrow keys to step); the server renders the view (:class:`~.view.LevelledView`),
-encodes it as JPEG (``cv2.imencode``, libjpeg-turbo in the OpenCV wheels) and sends it as
+encodes it as JPEG (:func:`~accelcal_ros.jpeg.encode_jpeg`: libjpeg-turbo) and sends it as
 one binary message, preceded by a JSON text message with the view's state (pose, horizon
 row, covered fraction, frame number). The page acknowledges each frame once drawn; the
 server sends the next one only then, so at most one frame is in flight and a drag is
@@ -39,6 +39,7 @@ import time
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.jpeg import encode_jpeg
 from accelcal_ros.panorama.view import ViewPose
 from accelcal_ros.panorama.view_set import ViewSet
 import numpy as np
@@ -289,8 +290,6 @@ class ViewServer:
             self._changed.notify_all()
 
     async def _send_frames(self, ws: Any, name: str, state: Dict[str, Any]) -> None:
-        import cv2
-
         loop = asyncio.get_running_loop()
         assert self._changed is not None
         seen_frame = -1
@@ -324,11 +323,8 @@ class ViewServer:
                             'name': name}
                 # the view's buffer is only rendered again by this tab, after this frame:
                 # encode outside the lock, so that other tabs render meanwhile
-                ok, jpeg = cv2.imencode('.jpg', image,
-                                        [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-                if not ok:
-                    raise InputError('JPEG encoding failed')
-                return jpeg.tobytes(), info
+                jpeg = encode_jpeg(image, self.jpeg_quality)
+                return jpeg, info
 
             try:
                 data, info = await loop.run_in_executor(None, render)

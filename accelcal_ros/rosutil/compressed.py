@@ -33,6 +33,7 @@ import struct
 from typing import Any, Optional, Tuple
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.jpeg import encode_jpeg
 from accelcal_ros.rosutil.images import convert_color, SUPPORTED_ENCODINGS
 import numpy as np
 
@@ -266,9 +267,9 @@ def encode_compressed(arr: np.ndarray, encoding: str, codec: str = 'jpeg',
     colour = encoding in COLOUR_ENCODINGS
     target = 'bgr8' if colour else encoding
     image = convert_color(arr, encoding, 'bgr8') if colour else arr
-    params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)] if codec == 'jpeg' else \
-        [cv2.IMWRITE_PNG_COMPRESSION, int(png_level)]
-    ok, data = cv2.imencode('.jpg' if codec == 'jpeg' else '.png', image, params)
+    if codec == 'jpeg':
+        return f'{encoding}; {codec} compressed {target}', encode_jpeg(image, quality)
+    ok, data = cv2.imencode('.png', image, [cv2.IMWRITE_PNG_COMPRESSION, int(png_level)])
     if not ok:
         raise InputError(f'{codec} encoding of a {encoding} image failed')
     return f'{encoding}; {codec} compressed {target}', data.tobytes()
