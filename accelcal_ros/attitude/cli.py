@@ -75,7 +75,8 @@ def _vibration(args) -> float:
     """Return the drive's road vibration (g): ``--vibration-g`` or the simulator's default."""
     from accelcal_ros.sensor.drive_sim import VIBRATION_G
 
-    return VIBRATION_G if args.vibration_g is None else args.vibration_g
+    value = getattr(args, 'vibration_g', None)   # callers may build the namespace themselves
+    return VIBRATION_G if value is None else float(value)
 
 
 PANORAMA_AIDS = (('accel only', False, False), ('+ odometry', False, True),
