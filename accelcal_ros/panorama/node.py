@@ -86,7 +86,6 @@ class StitcherNode(Node):
         super().__init__('stitcher')
         import cv2
 
-        self._cv2 = cv2
         self.params = ParameterSet(self, STITCHER_PARAMS)
         self.drops = DropCounter(self)
         self.roi = RoiViews(self, self.drops)  # levelled views roi/<name>: their parameters
