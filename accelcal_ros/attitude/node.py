@@ -18,7 +18,9 @@ while moving), gyro-aided when angular velocity comes with the samples
 (``angular_velocity_covariance[0] != -1`` in ``imu/data_raw``) or on ``gyro_topic`` (a
 second sensor_msgs/Imu, the newest sample within 50 ms used; its frame must be the
 accelerometer's unless ``gyro_rotation`` says how they relate), odometry-aided with
-``odometry_topic`` (nav_msgs/Odometry; ``lever_arm_m``). ``time_constant_s`` > 0 selects
+``odometry_topic`` (nav_msgs/Odometry; ``lever_arm_m``, which the gyro path uses too:
+the rotation's acceleration at the sensor is removed and a turn leaves pitch to the
+accelerometer). ``time_constant_s`` > 0 selects
 the former fixed low-pass instead (accelerometer only). Bad gyro or odometry input is
 not used, counted in ``/diagnostics`` and logged (throttled), with the reason; the
 ``attitude: tilt`` status's
@@ -89,7 +91,8 @@ class AttitudeNode(Node):
                                     max_hold_s=values['max_hold_s'])
         self.filter = AttitudeFilter(accel_threshold_g=values['accel_threshold_g'],
                                      max_hold_s=values['max_hold_s'],
-                                     settings=self._filter_settings(values))
+                                     settings=self._filter_settings(values),
+                                     lever_arm_m=values['lever_arm_m'])
         self.estimator = self.legacy if values['time_constant_s'] > 0 else self.filter
         self._gyro_rotation = self._rotation(values['gyro_rotation'])
         self._gyro_sample = None
@@ -216,8 +219,10 @@ class AttitudeNode(Node):
         elif name == 'gyro_rotation':
             self._gyro_rotation = self._rotation(value)
             self._gyro_frame_reason = ''
-        elif name == 'lever_arm_m' and self._odometry is not None:
-            self._odometry.lever_arm_m = tuple(float(v) for v in value)
+        elif name == 'lever_arm_m':
+            self.filter.set_lever_arm(value)
+            if self._odometry is not None:
+                self._odometry.lever_arm_m = tuple(float(v) for v in value)
 
     # -- helpers ----------------------------------------------------------------------------
     @staticmethod

@@ -87,8 +87,11 @@ ATTITUDE_PARAMS = (
     ParamSpec('odometry_topic', '', 'nav_msgs/Odometry of the vehicle (twist.linear.x, '
               'twist.angular.z): its acceleration is removed from the specific force. '
               'Empty: none.', read_only=True),
-    ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], "Position of the sensor from the odometry's "
-              'reference point, vehicle frame (x fwd, y left, z up).', lengths=(3,),
+    ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], "Position of the sensor from the vehicle's "
+              "reference point (the odometry's; one that does not slip sideways, e.g. the rear "
+              'axle centre), vehicle frame (x fwd, y left, z up). With a gyro, non-zero: the '
+              "rotation's acceleration there is removed and turns leave pitch to the "
+              'accelerometer; all zero: unknown.', lengths=(3,),
               minimum=-100.0, maximum=100.0, unit='m'),
     ParamSpec('accel_threshold_g', _ESTIMATOR['accel_threshold_g'], 'When | |f| - 1 g | '
               'exceeds this the sensor is accelerating: the last good tilt is held and the '

@@ -6,9 +6,9 @@ braking at 0.3 g, road vibration, a 5 s stop with the gyro bias drifting). Every
 estimator sees the same samples:
 
 * ``accel only``, ``+ odometry``, ``+ gyro``, ``+ gyro + odometry``: the package's
-  :class:`~accelcal_ros.sensor.tilt_filter.AttitudeFilter` with its defaults
-  (odometry: :func:`~accelcal_ros.sensor.odometry_aid.accel_series_g`, centred, with the
-  drive's lever arm);
+  :class:`~accelcal_ros.sensor.tilt_filter.AttitudeFilter` with its defaults and the
+  drive's lever arm (odometry: :func:`~accelcal_ros.sensor.odometry_aid.accel_series_g`,
+  centred; the gyro alone: :mod:`~accelcal_ros.sensor.lever_arm`);
 * anchors, when the Python packages are installed (never used by the nodes): ``Fusion``
   (``imufusion``, x-io's AHRS with its gyro-bias algorithm, gain 0.5, acceleration
   rejection 10 deg, NWU), ``Mahony`` and ``Madgwick`` (``ahrs``, default gains). A

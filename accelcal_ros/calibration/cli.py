@@ -61,8 +61,10 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--odometry', help='odometry CSV t,v,yaw_rate (s, m/s, rad/s): the '
                    "vehicle's acceleration is removed from the specific force")
     p.add_argument('--lever-arm', type=float_in(-100.0, 100.0), nargs=3, default=[0.0] * 3,
-                   metavar=('X', 'Y', 'Z'), help='sensor position from the odometry reference '
-                   'point, m, vehicle frame (default 0 0 0)')
+                   metavar=('X', 'Y', 'Z'), help="sensor position from the vehicle's reference "
+                   "point (the odometry's, e.g. the rear axle centre), m, vehicle frame "
+                   "(default 0 0 0: unknown); with a gyro, its rotation's acceleration there is "
+                   'removed and turns leave pitch to the accelerometer')
     p.add_argument('--no-gyro', action='store_true', help='ignore angular velocity')
     p.add_argument('--platform-accel-g', type=float_in(0.0, 1.0), default=0.0,
                    help='steady acceleration the platform may have (g; default 0): '

@@ -10,7 +10,8 @@ turn); the sensor, at the lever arm ``p`` from the reference point, by
 
 ``a = (dv/dt - r^2 p_x - (dr/dt) p_y,  v r - r^2 p_y + (dr/dt) p_x,  0)``
 
-(rigid body: ``a_ref + dw/dt x p + w x (w x p)`` with ``w = (0, 0, r)``). The tilt filter
+(rigid body: ``a_ref + dw/dt x p + w x (w x p)`` with ``w = (0, 0, r)``:
+:func:`~accelcal_ros.sensor.lever_arm.rotation_accel`). The tilt filter
 subtracts ``a / g`` from the specific force (:class:`~accelcal_ros.sensor.tilt_filter.
 AttitudeFilter`), leaving gravity; roll and pitch rates of the body are neglected (their
 terms are a few mg on a road vehicle).
@@ -34,6 +35,7 @@ import math
 from typing import Deque, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.sensor.lever_arm import check_lever_arm, rotation_accel
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 from numpy.typing import ArrayLike
@@ -47,9 +49,7 @@ class OdometryAid:
 
     def __init__(self, lever_arm_m: Sequence[float] = (0.0, 0.0, 0.0),
                  derivative_window_s: float = 0.4, max_age_s: float = 0.5) -> None:
-        arm = [float(v) for v in lever_arm_m]
-        if len(arm) != 3 or not all(math.isfinite(v) for v in arm):
-            raise InputError(f'lever_arm_m must be 3 finite numbers (m), got {lever_arm_m!r}')
+        arm = check_lever_arm(lever_arm_m)
         if not (derivative_window_s > 0 and max_age_s > 0):
             raise InputError('derivative_window_s and max_age_s must be positive')
         self.lever_arm_m = tuple(arm)
@@ -123,9 +123,9 @@ def _slope(t: Sequence[float], y: Sequence[float]) -> float:
 
 def _at_sensor(v: float, r: float, dv: float, dr: float, arm: Sequence[float]
                ) -> Tuple[float, float, float]:
-    px, py = arm[0], arm[1]
+    ax, ay, _ = rotation_accel((0.0, 0.0, r), (0.0, 0.0, dr), arm)
     g = STANDARD_GRAVITY_M_S2
-    return ((dv - r * r * px - dr * py) / g, (v * r - r * r * py + dr * px) / g, 0.0)
+    return (dv + ax) / g, (v * r + ay) / g, 0.0
 
 
 def _window_slopes(t: np.ndarray, y: np.ndarray, half: float) -> np.ndarray:
@@ -174,9 +174,8 @@ def accel_series_g(t_s: ArrayLike, odo_t_s: ArrayLike, speed_m_s: ArrayLike,
     r_t = np.interp(t, t_odo, r)
     dv = np.interp(t, t_odo, _window_slopes(t_odo, v, half))
     dr = np.interp(t, t_odo, _window_slopes(t_odo, r, half))
-    px, py, _ = aid.lever_arm_m
-    out = np.stack([dv - r_t ** 2 * px - dr * py, v_t * r_t - r_t ** 2 * py + dr * px,
-                    np.zeros_like(t)], axis=1) / STANDARD_GRAVITY_M_S2
+    ax, ay, _ = rotation_accel((0.0, 0.0, r_t), (0.0, 0.0, dr), aid.lever_arm_m)
+    out = np.stack([dv + ax, v_t * r_t + ay, np.zeros_like(t)], axis=1) / STANDARD_GRAVITY_M_S2
     outside = (t < t_odo[0] - aid.max_age_s) | (t > t_odo[-1] + aid.max_age_s)
     out[outside] = np.nan
     return out

@@ -34,23 +34,25 @@ rad/s) and two averages:
 The averages' covariance and **honest when blind**: :mod:`accelcal_ros.sensor.tilt_settings`.
 
 **Gyro-aided (complementary filter on the gravity direction).** With angular velocity ``w`` the
-filter keeps ``u``, the unit "up" direction in the body frame, propagated by ``du/dt = u x (w -
-b)`` and pulled towards ``f / |f|`` with the gain ``k = 1 - exp(-dt / gyro_time_constant_s)``
-(imu_tools' complementary filter, Mahony's proportional term, plus his integral term on ``b``);
-yaw stays unobserved. Acceleration rejection per axis (x-io Fusion rejects all axes): the
-innovation ``f / |f| - u``, low-passed over 0.1 s, beyond ``rejection_deg`` on body x (braking,
-pulling) or y (a turn's centripetal acceleration) stops the pull on that axis only (the other is
-pulled towards ``f / g_scale``); in a turn (rate about up beyond 9 deg/s, no odometry) a lever
-arm's centripetal acceleration reaches every axis and both stop; ``| |f| - 1 |`` above
-``accel_threshold_g`` stops both. The test sees an acceleration only once its low-passed
-innovation has grown past the limit: when an axis's rejection starts, the corrections made on it
-(pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``, exponential weight; none
-at rest) are taken back. Rejected for ``rejection_timeout_s``, or for 3 s (1 s when odometry says
-stopped) and still for 1 s with a still average within 0.003 g of 1 g in magnitude (a steady pull
-is not), the accelerometer is trusted again. **Vertical aid** while rejecting
+filter keeps ``u``, the unit "up" direction in the body frame, propagated by
+``du/dt = u x (w - b)`` and pulled towards ``f / |f|`` with the gain
+``k = 1 - exp(-dt / gyro_time_constant_s)`` (imu_tools' complementary filter, Mahony's proportional
+term, plus his integral term on ``b``); yaw stays unobserved. Acceleration rejection per axis (x-io
+Fusion rejects all axes): the innovation ``f / |f| - u``, low-passed over 0.1 s, beyond
+``rejection_deg`` on body x (braking, pulling) or y (a turn's centripetal acceleration) stops the
+pull on that axis only (the other is pulled towards ``f / g_scale``); in a turn (rate about up
+beyond 9 deg/s, no odometry) a lever arm's centripetal acceleration reaches every axis and both
+stop, unless the lever arm is known (``lever_arm_m``): the rotation's acceleration
+(:mod:`~accelcal_ros.sensor.lever_arm`, from the gyro) is then removed while moving and x stays
+pulled; ``| |f| - 1 |`` above ``accel_threshold_g`` stops both. The test sees an acceleration once
+its low-passed innovation has grown past the limit: when an axis's rejection starts, the
+corrections made on it (pull and integral term) over the last 0.5 s (``UNDO_TIME_CONSTANT_S``,
+exponential weight) are undone. Rejected for ``rejection_timeout_s``, or for 3 s (1 s when odometry
+says stopped) and still for 1 s with a still average within 0.003 g of 1 g in magnitude (a steady
+pull is not), the accelerometer is trusted again. **Vertical aid** while rejecting
 (``vertical_aid_time_constant_s``, 0: off): a vehicle accelerates horizontally, so the force along
-the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along ``u``); its excess
-along the estimate measures the error along the horizontal acceleration
+the true up stays ``g_scale`` (1 g, learnt at rest as the mean force along ``u``); its excess along
+the estimate measures the error along the horizontal acceleration
 (:func:`~accelcal_ros.sensor.gyro_bias.horizontal_error`), corrected with that time constant (not
 fed to the bias: the road's vibration on it would reach the bias). The gyro bias ``b`` is learnt
 while the detector says still (mean corrected rate below 0.01 rad/s once a bias is known), the
@@ -61,13 +63,13 @@ stillness taught is forgotten if it turns, ends or is cut by the jump test above
 has shown rest: :class:`~accelcal_ros.sensor.gyro_bias.GyroBiasEstimator` (20 ms blocks a still
 window has passed; a line with a drift prior ``gyro_bias_drift_rad_s2``, memory
 ``bias_time_constant_s``; without odometry carried over the stillness's last window). Until 0.2 s
-of stillness have given a bias the output is the accelerometer-only estimate. At rest the
-direction is the Kalman update of the propagated one with each sample, then the still average
-weighed by the two variances (it wins within a second; its line through the few samples after a
-stop does not). Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise
-``s_w``, bias uncertainty ``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from
-stillness), then ``P = (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the
-squared low-passed innovation while the accelerometer is used.
+of stillness have given a bias the output is the accelerometer-only estimate. At rest (still for
+0.3 s: ``AT_REST_AFTER_S``) the direction is the Kalman update of the propagated one with each
+sample, then the still average weighed by the two variances (it wins within a second).
+Variance: per sample ``P = (sqrt(P + (s_w dt)^2) + s_b dt)^2`` (gyro noise ``s_w``, bias
+uncertainty ``s_b`` growing by ``gyro_bias_drift_rad_s2`` per second away from stillness), then
+``P = (1 - k)^2 P + k^2 R`` (``R``: the accelerometer's angle variance), plus the squared
+low-passed innovation while the accelerometer is used.
 
 Bad gyro samples (NaN, infinite, at or beyond ``gyro_saturation_rad_s``): the last good rate
 for up to 0.1 s, then the accelerometer; :attr:`AttitudeFilter.gyro_rejections` counts them.
@@ -78,13 +80,14 @@ from typing import Dict, Optional, Sequence, Tuple
 
 from accelcal_ros.sensor.datasheet import NOISE_STD_100HZ_G
 from accelcal_ros.sensor.gyro_bias import GyroBiasEstimator, horizontal_error
+from accelcal_ros.sensor.lever_arm import check_lever_arm, RotationAcceleration
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
 from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
 from accelcal_ros.sensor.tilt_settings import (
-    BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
+    AT_REST_AFTER_S, BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
     BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
-    GYRO_HOLD_S, holt_slope, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S,
+    GyroHold, holt_slope, INNOVATION_TIME_CONSTANT_S, low_pass_gain, MAX_GAP_S,
     RECOVERY_FORCE_G, RECOVERY_STILL_S, STILL_RECOVERY_S, STILL_RECOVERY_TIME_CONSTANT_S,
     STILL_RECOVERY_UNAIDED_S, still_turning, TURN_RATE_RAD_S, UNDO_TIME_CONSTANT_S,
     VERTICAL_AID_FULL_G, VERTICAL_AID_MIN_G)
@@ -106,7 +109,8 @@ class AttitudeFilter:
                  noise_std_g: Sequence[float] = NOISE_STD_100HZ_G, tilt_std_rad: float = 0.0,
                  accel_threshold_g: float = 0.05, max_hold_s: float = 1.0,
                  settings: Optional[FilterSettings] = None,
-                 stillness: Optional[StillnessThresholds] = None) -> None:
+                 stillness: Optional[StillnessThresholds] = None,
+                 lever_arm_m: Optional[Sequence[float]] = None) -> None:
         self.tilt = TiltEstimator(sensor_model, noise_std_g, tilt_std_rad,
                                   accel_threshold_g=accel_threshold_g, max_hold_s=max_hold_s)
         self.settings = settings or FilterSettings()
@@ -114,7 +118,11 @@ class AttitudeFilter:
         self._stillness = stillness or StillnessThresholds(gyro_rate_rad_s=BIAS_RATE_LIMIT_RAD_S)
         self.last_rejection = ''
         """Why the last None was returned (see :class:`TiltEstimator`)."""
-        self.gyro_rejections: Dict[str, int] = {'NaN': 0, 'saturated': 0}
+        self._gyro_hold = GyroHold()
+        self.gyro_rejections: Dict[str, int] = self._gyro_hold.rejections
+        self._arm: Optional[RotationAcceleration] = None
+        if lever_arm_m is not None:
+            self.set_lever_arm(lever_arm_m)
         self.jumps = 0
         """Restarts of the still average by the jump test."""
         self.reset()
@@ -124,6 +132,11 @@ class AttitudeFilter:
         """Use new settings from now on (checked; the state is kept)."""
         settings.check()
         self.settings = settings
+
+    def set_lever_arm(self, lever_arm_m: Optional[Sequence[float]]) -> None:
+        """Set the sensor's lever arm (m, body frame; None or zeros: unknown) for the gyro path."""
+        arm = None if lever_arm_m is None else check_lever_arm(lever_arm_m)
+        self._arm = RotationAcceleration(arm) if arm is not None and any(arm) else None
 
     def set_calibration(self, sensor_model: SensorModel,
                         tilt_std_rad: Optional[float] = None) -> None:
@@ -162,7 +175,7 @@ class AttitudeFilter:
         if not hasattr(self, '_g_scale'):
             self._g_scale = 1.0
             self._g_scale_n = 0
-        self._gyro_last: Optional[Tuple[float, float, float, float]] = None
+        self._gyro_hold.last = None
         if not hasattr(self, '_bias_est'):
             self._bias_est = GyroBiasEstimator(self.settings.bias_time_constant_s,
                                                self.settings.gyro_bias_drift_rad_s2)
@@ -218,11 +231,19 @@ class AttitudeFilter:
             dt = stamp - last
         gap = last is not None and (stamp - last > MAX_GAP_S or stamp < last)
         self._last_t = stamp if last is None or stamp > last else last
-        gyro = self._gyro_of(stamp, gyro_rad_s)
+        gyro = self._gyro_hold.rate(stamp, gyro_rad_s, settings.gyro_saturation_rad_s)
         if gap:
             self._up = None
         detector = self.detector
         bias_known = self.bias_known
+        self._arm_used = False
+        if self._arm is not None and gyro is not None and bias_known and not aided_by_odometry:
+            b = self._bias_est.bias
+            a_rot = self._arm.update(dt, (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
+            if not detector.still:   # at rest its derivative's noise alone
+                fx, fy, fz = fx - a_rot[0], fy - a_rot[1], fz - a_rot[2]
+                magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
+                self._arm_used = True
         if gyro is not None and bias_known:
             b = self._bias_est.bias
             detector.add(stamp, (fx, fy, fz), (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
@@ -287,27 +308,6 @@ class AttitudeFilter:
                                   still, out, shrink, aided_by_odometry, mode)
 
     # -- pieces ---------------------------------------------------------------------------
-    def _gyro_of(self, stamp: float, gyro_rad_s: Optional[Sequence[float]]
-                 ) -> Optional[Tuple[float, float, float]]:
-        """Return a usable rate for this sample (bridging bad ones) or None."""
-        if gyro_rad_s is None:
-            return None
-        gx, gy, gz = float(gyro_rad_s[0]), float(gyro_rad_s[1]), float(gyro_rad_s[2])
-        limit = self.settings.gyro_saturation_rad_s
-        reason = ''
-        if not math.isfinite(gx + gy + gz):
-            reason = 'NaN'
-        elif abs(gx) >= limit or abs(gy) >= limit or abs(gz) >= limit:
-            reason = 'saturated'
-        if not reason:
-            self._gyro_last = (stamp, gx, gy, gz)
-            return gx, gy, gz
-        self.gyro_rejections[reason] += 1
-        last = self._gyro_last
-        if last is not None and 0.0 <= stamp - last[0] <= GYRO_HOLD_S:
-            return last[1], last[2], last[3]
-        return None
-
     def _still_average(self, fast, dema, force, stamp, dt, shrink_dema):
         """
         Return (average, variance ratio) while still, restarting on a jump.
@@ -479,7 +479,7 @@ class AttitudeFilter:
             # turning (rate about up): the lever arm's centripetal acceleration reaches
             # both axes; a straight pull or braking leaves body y (roll) to gravity
             turning = not aided_by_odometry and abs(wx * vx + wy * vy + wz * vz) > TURN_RATE_RAD_S
-            reject_x = turning or abs(ix) > limit
+            reject_x = (turning and not self._arm_used) or abs(ix) > limit
             reject_y = turning or abs(iy) > limit
             reject = (accelerating and self.tilt.calibrated) or (reject_x and reject_y)
             k_fast = 0.0
@@ -551,7 +551,7 @@ class AttitudeFilter:
             est = self._bias_est
             drift = settings.gyro_bias_drift_rad_s2 * max(0.0, stamp - est.time)
             s_b = math.sqrt(est.variance) + drift
-            if still and not reject:
+            if still and not reject and stamp - self._moved_at >= AT_REST_AFTER_S:
                 # at rest the accelerometer is unbiased: a Kalman gain on the propagated
                 # direction (a growing average that the gyro keeps aligned), then the
                 # still average once its variance is the smaller (its line through the

@@ -55,8 +55,9 @@ def estimate_series(t_s: ArrayLike, accel_g: ArrayLike, gyro_rad_s: Optional[Arr
     Return one estimate (or None for an impossible sample) per sample of a recording.
 
     ``t_s`` (N,) s, ``accel_g`` (N, 3) raw g, ``gyro_rad_s`` (N, 3) or None, ``odometry``
-    ``(t, v, yaw_rate)`` arrays or None. ``noise_std_g`` None: the datasheet noise at the
-    recording's median rate.
+    ``(t, v, yaw_rate)`` arrays or None, ``lever_arm_m`` the sensor's position from the
+    platform's reference point (the odometry's, and the gyro path's: :mod:`.lever_arm`).
+    ``noise_std_g`` None: the datasheet noise at the recording's median rate.
     """
     from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 
@@ -77,7 +78,7 @@ def estimate_series(t_s: ArrayLike, accel_g: ArrayLike, gyro_rad_s: Optional[Arr
                                accel_threshold_g)
         return [legacy.update(ti, ai) for ti, ai in zip(times, rows)]
     filt = AttitudeFilter(model, noise_std_g, tilt_std_rad, accel_threshold_g,
-                          settings=settings)
+                          settings=settings, lever_arm_m=lever_arm_m)
     rates: List[Optional[list]] = [None] * t.size
     if gyro_rad_s is not None:
         gyro = np.asarray(gyro_rad_s, dtype=float).reshape(-1, 3)

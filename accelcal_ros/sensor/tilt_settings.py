@@ -1,5 +1,5 @@
 """
-Settings of the attitude filter and the small helpers of its averages (pure core).
+Settings of the attitude filter and its small helpers: averages, bad gyro samples (pure core).
 
 :class:`FilterSettings` is documented with :mod:`accelcal_ros.sensor.tilt_filter`, which
 re-exports it; the node's parameters take their defaults from it.
@@ -20,7 +20,7 @@ samples at 800 Hz would cross 0.05 g by noise) holds the last good tilt (at most
 """
 from dataclasses import dataclass, fields
 import math
-from typing import List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 
@@ -123,6 +123,13 @@ RECOVERY_FORCE_G = 0.003
 """And the still average's magnitude within this of the 1 g at rest (g): a steady pull of
 ``a`` g on a smooth road passes the detector for seconds, but ``|f| = sqrt(1 + a^2)``
 (0.1 g: 0.005 g over; the average's noise over 1 s: 0.0004 g)."""
+AT_REST_AFTER_S = 0.3
+"""Stillness this old (s) before the gyro path's at-rest update trusts the accelerometer (a
+Kalman gain with the variance propagated while moving, then the still average). On a
+smooth road a cruise, or the first tens of ms of a braking, passes the stillness detector
+for a block or two: at once, with the variance grown while moving, that update snapped to
+the acceleration (1-1.7 deg; drive seeds 0-7, vibration 0 and 0.01 g, gyro alone: p95
+worst 1.16-1.39 -> 0.35-0.38 deg, max 1.50-1.70 -> 0.40-0.44 deg; 1 s did the same)."""
 STILL_RECOVERY_TIME_CONSTANT_S = 0.5
 """Time constant of that recovery (s)."""
 STILL_ROTATION_RAD_S = math.radians(0.1)
@@ -130,6 +137,37 @@ STILL_ROTATION_RAD_S = math.radians(0.1)
 than this (its slope across it, plus 2 sigma; g/s ~ rad/s): on a smooth road a vehicle
 cruising over a changing grade or bank (0.3-0.5 deg/s) passes the stillness detector, and
 its rate would be learnt as bias."""
+
+
+class GyroHold:
+    """The rate to use for a sample: a bad one (NaN, infinite, saturated) bridged for a while."""
+
+    def __init__(self) -> None:
+        self.rejections: Dict[str, int] = {'NaN': 0, 'saturated': 0}
+        """Bad samples by reason."""
+        self.last: Optional[Tuple[float, float, float, float]] = None
+        """The last good sample ``(t, x, y, z)``."""
+
+    def rate(self, stamp: float, gyro_rad_s: Optional[Sequence[float]],
+             saturation_rad_s: float) -> Optional[Tuple[float, float, float]]:
+        """Return the rate to use at ``stamp`` (a bad one: the last good, :data:`GYRO_HOLD_S`)."""
+        if gyro_rad_s is None:
+            return None
+        gx, gy, gz = float(gyro_rad_s[0]), float(gyro_rad_s[1]), float(gyro_rad_s[2])
+        reason = ''
+        if not math.isfinite(gx + gy + gz):
+            reason = 'NaN'
+        elif abs(gx) >= saturation_rad_s or abs(gy) >= saturation_rad_s \
+                or abs(gz) >= saturation_rad_s:
+            reason = 'saturated'
+        if not reason:
+            self.last = (stamp, gx, gy, gz)
+            return gx, gy, gz
+        self.rejections[reason] += 1
+        last = self.last
+        if last is not None and 0.0 <= stamp - last[0] <= GYRO_HOLD_S:
+            return last[1], last[2], last[3]
+        return None
 
 
 def still_turning(level: Sequence[float], slope: Sequence[float], slope_var_ratio: float,

@@ -180,3 +180,18 @@ def test_attitude_node_gyro_and_odometry_inputs(graph):
         time.sleep(0.1)
     assert 'backwards in time' in proc.output()
     assert 'Traceback' not in proc.output()
+
+    # the lever arm (odometry and gyro path), set at run time: a bad one refused with the
+    # reason, a good one taken; the node goes on
+    result = graph.set_parameters('attitude', {'lever_arm_m': [1.0, 0.3]})
+    assert not result[0].successful and 'lever_arm_m' in result[0].reason, result[0].reason
+    result = graph.set_parameters('attitude', {'lever_arm_m': [1.0, 0.3, 0.8]})
+    assert result[0].successful, result[0].reason
+    count = len(out.snapshot()[0])
+    deadline = time.monotonic() + 30.0
+    while len(out.snapshot()[0]) < count + 5 and time.monotonic() < deadline:
+        pub.publish(_imu(t, force, (0.01, -0.02, 0.005)))
+        t += 0.01
+        time.sleep(0.01)
+    assert len(out.snapshot()[0]) >= count + 5, proc.output()
+    assert 'Traceback' not in proc.output()
