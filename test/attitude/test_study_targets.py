@@ -38,3 +38,5 @@ def test_seed_spread_lines(capsys):
         assert len(line) == 1
         low, mid, high = (float(v) for v in line[0].split('p95')[1].split('max')[0].split('/'))
         assert low <= mid <= high <= 1.0
+        above = line[0].split('above ')[1]
+        assert above.split(':')[1].split(' of ')[1].startswith('2')
