@@ -533,8 +533,8 @@ class LevelledView:
                     g = self.builder._grid
                     self._grid = GridMaps(plan, self.builder, self.camera_rotations(), g.cx,
                                           g.cy, tolerance_px=self.tolerance_px,
-                                          buffer=self._grid_buffer)
-                    self._grid_buffer = self._grid.buffer
+                                          buffers=self._grid_buffer)
+                    self._grid_buffer = self._grid.buffers
                 canvas = self._canvas if len(shape) == 3 and four_channels() else self._out
                 self._grid.render(self.shared_sources(), mosaic, version, self._out, canvas)
             else:
