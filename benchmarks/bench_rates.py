@@ -10,8 +10,10 @@ as their own processes (issue 15, part 1):
 * ``attitude`` and ``calibration`` (a session started, so every sample goes through the
   still detector) and ``attitude_gyro`` (the attitude node's gyro-aided path: each
   sample is given an angular velocity, 0.01 rad/s on each axis with its covariance,
-  inside the measured process before the node's callback) on each executor of
-  :func:`accelcal_ros.rosutil.runner.run`: events, single, multi (``ACCELCAL_EXECUTOR``).
+  inside the measured process before the node's callback), ``attitude_gyro_arm`` (the
+  same with ``lever_arm_m`` [1.0, 0.3, 0.8]: the rotation's acceleration at the sensor
+  computed per sample) on each executor of :func:`accelcal_ros.rosutil.runner.run`:
+  events, single, multi (``ACCELCAL_EXECUTOR``).
 
 Each consumer process is the node class run as its executable runs it, with its sample
 callback wrapped by a counter that publishes ``[count, first stamp, last stamp]`` twice
@@ -23,7 +25,7 @@ the window (rate x window x delivered); the driver's is printed beside it. Run a
 ``source tools/env.sh``::
 
     python benchmarks/bench_rates.py [--seconds 10] [--rates 800 3200] \
-        [--consumers passthrough attitude attitude_gyro calibration] \
+        [--consumers passthrough attitude attitude_gyro attitude_gyro_arm calibration] \
         [--executors events single multi]
 
 Numbers from a loaded machine are indicative only; take final figures on a quiet one.
@@ -90,11 +92,14 @@ def serve(consumer):
             pass
         return 0
     from accelcal_ros.rosutil.runner import run
-    if consumer in ('attitude', 'attitude_gyro'):
+    args = [sys.argv[0]]
+    if consumer in ('attitude', 'attitude_gyro', 'attitude_gyro_arm'):
         from accelcal_ros.attitude.node import AttitudeNode as node_class
+        if consumer == 'attitude_gyro_arm':
+            args += ['--ros-args', '-p', 'lever_arm_m:=[1.0, 0.3, 0.8]']
     else:
         from accelcal_ros.calibration.node import CalibrationNode as node_class
-    return run(_counted(node_class, consumer == 'attitude_gyro'), args=[sys.argv[0]],
+    return run(_counted(node_class, consumer.startswith('attitude_gyro')), args=args,
                executor='events')
 
 
@@ -244,7 +249,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--rates', type=float, nargs='+',
                         default=[100.0, 400.0, 800.0, 1600.0, 3200.0])
-    consumers = ('passthrough', 'attitude', 'attitude_gyro', 'calibration')
+    consumers = ('passthrough', 'attitude', 'attitude_gyro', 'attitude_gyro_arm', 'calibration')
     parser.add_argument('--consumers', nargs='+', default=list(consumers), choices=consumers)
     parser.add_argument('--executors', nargs='+', default=list(EXECUTORS), choices=EXECUTORS)
     parser.add_argument('--seconds', type=float, default=10.0, help='measurement window')
@@ -260,7 +265,7 @@ def main(argv=None):
              for e in (['default'] if c == 'passthrough' else args.executors)]
     print(f'{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}; '
           f'{args.seconds:g} s per case')
-    print(f'{"rate Hz":>8} {"consumer":>12} {"executor":>9} {"delivered %":>12} '
+    print(f'{"rate Hz":>8} {"consumer":>17} {"executor":>9} {"delivered %":>12} '
           f'{"CPU us/sample":>14} {"CPU %":>6} {"x floor":>8} {"driver us":>10}')
     probe = Probe()
     for sig in (signal.SIGINT, signal.SIGTERM):   # after rclpy.init, which takes them over
@@ -275,7 +280,7 @@ def main(argv=None):
                 if consumer == 'passthrough':
                     floor = r['cpu_us']
                 ratio = f'{r["cpu_us"] / floor:8.2f}' if floor else f'{"-":>8}'
-                print(f'{rate:8g} {consumer:>12} {executor:>9} {r["delivered"] * 100:12.2f} '
+                print(f'{rate:8g} {consumer:>17} {executor:>9} {r["delivered"] * 100:12.2f} '
                       f'{r["cpu_us"]:14.1f} {r["cpu_percent"]:6.1f} {ratio} '
                       f'{r["driver_us"]:10.1f}', flush=True)
         failed = False

@@ -248,10 +248,10 @@ def seed_spread(rate_hz: float, seeds: int, vibration_g: float = VIBRATION_G) ->
         p95 = np.array([v[0] for v in values])
         target = TARGET_ODOMETRY_P95_DEG if name == '+ odometry' else TARGET_GYRO_P95_DEG
         over = [str(k) for k, v in enumerate(p95.tolist()) if v > target]
+        which = f' ({", ".join(over)})' if over else ''
         lines.append(f'{name:<24} p95 {p95.min():.3f} / {np.median(p95):.3f} / '
                      f'{p95.max():.3f}   max {max(v[1] for v in values):.3f}   above '
-                     f'{target:g}: {len(over)} of {seeds}' + (f' ({", ".join(over)})'
-                                                               if over else ''))
+                     f'{target:g}: {len(over)} of {seeds}{which}')
     return lines
 
 
