@@ -237,16 +237,16 @@ class AttitudeFilter:
         detector = self.detector
         bias_known = self.bias_known
         self._arm_used = False
-        if self._arm is not None and gyro is not None and bias_known and not aided_by_odometry:
-            b = self._bias_est.bias
-            a_rot = self._arm.update(dt, (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
-            if not detector.still:   # at rest its derivative's noise alone
-                fx, fy, fz = fx - a_rot[0], fy - a_rot[1], fz - a_rot[2]
-                magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
-                self._arm_used = True
         if gyro is not None and bias_known:
             b = self._bias_est.bias
-            detector.add(stamp, (fx, fy, fz), (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2]))
+            rate = (gyro[0] - b[0], gyro[1] - b[1], gyro[2] - b[2])
+            if self._arm is not None and not aided_by_odometry:
+                a_rot = self._arm.update(dt, rate)
+                if not detector.still:   # at rest its derivative's noise alone
+                    fx, fy, fz = fx - a_rot[0], fy - a_rot[1], fz - a_rot[2]
+                    magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
+                    self._arm_used = True
+            detector.add(stamp, (fx, fy, fz), rate)
         else:
             detector.add(stamp, (fx, fy, fz))
         still = detector.still
