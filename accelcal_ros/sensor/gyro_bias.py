@@ -5,8 +5,11 @@ The gyro bias from still moments: a weighted line with a drift prior (pure core)
 stillness detector has passed (:class:`~accelcal_ros.sensor.tilt_filter.AttitudeFilter`
 feeds it) and returns the bias at the newest block:
 
-* within one still period (blocks no further apart than ``gap_s``), per axis, the
-  least-squares line through the block means, weighted by their sample counts and
+* within one still period (blocks no further apart than ``gap_s``, or than
+  :data:`JOIN_S` while no new stillness has begun: a gap the caller made, such as
+  odometry's speed noise reading 'moving' for a sample at a stop, does not restart the
+  line, whose restart kept the old level as a prior and lagged behind a drift), per
+  axis, the least-squares line through the block means, weighted by their sample counts and
   forgotten with the time constant ``memory_s``; the per-sample noise comes from the
   blocks' own scatter about that line, so the same code is right at 100 and 800 Hz;
 * the line's slope is shrunk towards zero by its prior, a drift of about
@@ -34,6 +37,12 @@ import math
 from typing import Deque, List, Optional, Sequence, Tuple
 
 from accelcal_ros.sensor.stillness import StillnessThresholds
+
+
+JOIN_S = 1.0
+"""A gap in a still line's blocks up to this long (s) continues the line when no new
+stillness began in it (the detector stayed still: the gap is a condition of the caller's,
+such as odometry's speed noise reading 'moving' for one sample)."""
 
 
 class GyroBiasEstimator:
@@ -146,7 +155,9 @@ class GyroBiasEstimator:
         t = 0.5 * (t_start + t_end)
         n = float(max(1, count))
         run = self._run
-        if not run or t - run[1] > self.gap_s + (t_end - t_start) or t < run[1]:
+        gap = t - run[1] - (t_end - t_start) if run else 0.0
+        if not run or t < run[1] or (gap > self.gap_s and not (
+                gap <= JOIN_S and run[0] >= self._since)):
             if prior is None:
                 prior_var = self.variance
                 if math.isfinite(prior_var):
