@@ -191,8 +191,11 @@ class GridMaps:
             if self.worst_px <= limit:
                 break
         # cells still beyond the limit at the finest step are evaluated pixel by pixel
-        self._exact = self._cell_error > limit
-        self.exact_cells = int(self._exact.sum())
+        hc, hb, ha, error = self._cell_error
+        beyond = error > limit
+        self._exact = np.zeros(cells[2].shape, bool)
+        self._exact[hc[beyond], hb[beyond], ha[beyond]] = True
+        self.exact_cells = int(beyond.sum())
         """How many (cell, camera) pairs are evaluated exactly at every pixel."""
         self.step = s
         """View pixels between the nodes (``step``, halved while a cell's error is too large)."""
@@ -209,8 +212,7 @@ class GridMaps:
         self.map_y = buffer[1, h0:h0 + plan.height, h0:h0 + plan.width]
         """View pixel -> mosaic row (float32)."""
         self._values, self._far = values, far
-        self._assemble(*cells)
-        self._fill()
+        self._fill(self._assemble(*cells))
 
     @staticmethod
     def buffer_shape(width: int, height: int, step: int) -> Tuple[int, int, int]:
@@ -254,13 +256,18 @@ class GridMaps:
         (far: True). Sets :attr:`worst_px` from the cells' centres.
         """
         cams = self._cams
-        nyc, nxc = hit.shape[1:]
-        need = np.zeros((len(cams), nyc + 1, nxc + 1), bool)
-        for db in (0, 1):
-            for da in (0, 1):
-                need[:, db:db + nyc, da:da + nxc] |= hit
-        nc, nb, na = np.nonzero(need)
-        hc, hb, ha = np.nonzero(hit)
+        cn, nyc, nxc = hit.shape
+        ny, nx = nyc + 1, nxc + 1
+        need = np.zeros((cn, ny, nx), bool)
+        need[:, :-1, :-1] = hit
+        need[:, 1:, :-1] |= hit
+        need[:, :-1, 1:] |= hit
+        need[:, 1:, 1:] |= hit
+        node = np.flatnonzero(need)  # flat (camera, row, column) of the nodes
+        nc, rest = np.divmod(node, ny * nx)
+        nb, na = np.divmod(rest, nx)
+        hc, rest = np.divmod(np.flatnonzero(hit), nyc * nxc)
+        hb, ha = np.divmod(rest, nxc)
         count = nb.size
         rays = np.empty((3, count + hb.size), np.float32)
         rays[0, :count] = na * s - 0.5 - cx
@@ -271,29 +278,34 @@ class GridMaps:
         label = cams[np.concatenate([nc, hc])]
         _, px, py, side = projection._evaluate_soa(rays, rotations, only=label)
         bad = (side & 16) != 0
-        # the bilinear interpolation at each cell's centre against the exact value,
-        # where the cell's corners and centre have pixels
-        nodes = np.zeros((2,) + need.shape, np.float32)
-        nodes[:, nc, nb, na] = px[:count], py[:count]
-        centres = np.zeros((2,) + hit.shape, np.float32)
-        centres[:, hc, hb, ha] = px[count:], py[count:]
-        invalid = np.ones(need.shape, bool)
-        invalid[nc, nb, na] = bad[:count]
-        good = np.zeros(hit.shape, bool)
-        good[hc, hb, ha] = ~bad[count:]
-        good &= ~(invalid[:, :-1, :-1] | invalid[:, 1:, :-1] | invalid[:, :-1, 1:] |
-                  invalid[:, 1:, 1:])
-        error = np.abs(0.25 * (nodes[:, :, :-1, :-1] + nodes[:, :, 1:, :-1] +
-                               nodes[:, :, :-1, 1:] + nodes[:, :, 1:, 1:]) - centres)
-        self._cell_error = np.where(good, error.max(axis=0), 0.0)
-        self.worst_px = float(self._cell_error.max(initial=0.0))
+        # the bilinear interpolation at each cell's centre (its four corner nodes, all
+        # evaluated) against the exact value, where the cell's corners and centre have
+        # pixels
+        raw = np.empty((2, cn * ny * nx), np.float32)
+        raw[0, node] = px[:count]
+        raw[1, node] = py[:count]
+        invalid = np.empty(cn * ny * nx, bool)
+        invalid[node] = bad[:count]
+        corners = ((hc * ny + hb) * nx + ha) + np.array([[0], [nx], [1], [nx + 1]])
+        error = np.abs(0.25 * raw[:, corners].sum(axis=1) - (px[count:], py[count:])).max(
+            axis=0)
+        error[bad[count:] | invalid[corners].any(axis=0)] = 0.0
+        self.worst_px = float(error.max(initial=0.0))
+        self._cell_error = (hc, hb, ha, error)  # per cell touched: camera, row, column
         x, y, far_node = self._mosaic_pixels(projection, label[:count], px[:count],
                                              py[:count], bad[:count])
-        values = np.full(nodes.shape, FAR, np.float32)
-        values[:, nc, nb, na] = x, y
+        values = np.full((2, cn, ny, nx), FAR, np.float32)
+        flat = values.reshape(2, -1)
+        flat[0, node] = x
+        flat[1, node] = y
         far = np.ones(need.shape, bool)
-        far[nc, nb, na] = far_node
+        far.reshape(-1)[node] = far_node
         return values, far
+
+    @staticmethod
+    def _corner_offsets(nx: int) -> np.ndarray:
+        """Return the flat offsets of a cell's corner nodes (TL, TR, BL, BR), ``nx`` per row."""
+        return np.array([0, 1, nx, nx + 1], np.intp)
 
     def _mosaic_pixels(self, projection: Any, label: np.ndarray, x: np.ndarray,
                        y: np.ndarray, bad: np.ndarray) -> Tuple[np.ndarray, ...]:
@@ -314,23 +326,31 @@ class GridMaps:
                 far)
 
     def _assemble(self, first: np.ndarray, last: np.ndarray, hit: np.ndarray,
-                  full: np.ndarray) -> None:
-        """Decide the nodes' values (:attr:`nodes`) and the cells filled pixel by pixel."""
-        nyc, nxc = hit.shape[1:]
-        empty = len(self._cams)  # the code of a cell no region touches
+                  full: np.ndarray) -> Tuple[np.ndarray, ...]:
+        """
+        Decide the nodes' values (:attr:`nodes`) and the cells filled pixel by pixel.
+
+        Returns those cells' map (:meth:`_by_pixel`), valid until the next pose's maps.
+        """
+        cn, nyc, nxc = hit.shape
+        empty = cn  # the code of a cell no region touches
         count = hit.sum(axis=0)
         code = np.where(count > 0, -1, empty).astype(np.int16)  # -1: pixel by pixel
-        pc, pb, pa = np.nonzero(full & (count == 1) & ~self._exact.any(axis=0))
-        code[pb, pa] = pc
+        pure = full & (count == 1)
+        if self.exact_cells:
+            pure &= ~self._exact.any(axis=0)
+        pc, cell = np.divmod(np.flatnonzero(pure), nyc * nxc)
+        code.reshape(-1)[cell] = pc
         owner = self._owners(code, empty)
-        ob, oa = np.nonzero((owner >= 0) & (owner < empty))
-        self.nodes = np.full((2, nyc + 1, nxc + 1), OUTSIDE, np.float32)
+        taken = np.flatnonzero((owner >= 0) & (owner < empty))  # flat (row, column)
+        source = owner.reshape(-1)[taken].astype(np.intp) * owner.size + taken  # flat (c, b, a)
+        self.nodes = np.full((2,) + owner.shape, OUTSIDE, np.float32)
         """The node grid :attr:`buffer` is resized from: x and y (mosaic pixels)."""
-        self.nodes[:, ob, oa] = self._values[:, owner[ob, oa], ob, oa]
+        self.nodes.reshape(2, -1)[:, taken] = self._values.reshape(2, -1)[:, source]
         self._used = np.zeros(self._far.shape, bool)  # the nodes the map interpolates
-        self._used[owner[ob, oa], ob, oa] = True
-        fb, fa = np.nonzero(code < 0)
-        self._fix = (fb, fa, self._by_pixel(first, last, hit, fb, fa))
+        self._used.reshape(-1)[source] = True
+        fb, fa = np.divmod(np.flatnonzero(code < 0), nxc)
+        return self._by_pixel(first, last, hit, fb, fa)
 
     @staticmethod
     def _owners(code: np.ndarray, empty: int) -> np.ndarray:
@@ -360,34 +380,42 @@ class GridMaps:
                           np.maximum(high[:-1, 1:], high[1:, 1:]))
 
     def _by_pixel(self, first: np.ndarray, last: np.ndarray, hit: np.ndarray,
-                  fb: np.ndarray, fa: np.ndarray) -> np.ndarray:
+                  fb: np.ndarray, fa: np.ndarray) -> Tuple[np.ndarray, ...]:
         """
-        Return the map over cells ``(fb, fa)``, ``(2, cells, s, s)``, pixel by pixel.
+        Return the map over cells ``(fb, fa)``, pixel by pixel: ``(b, a, values, eb, ea)``.
 
-        For each (cell, camera) pair the bilinear interpolation of the camera's corner
-        nodes with the resize's weights (one ``cv2.gemm``: pairs x 4 corners times 4 x
-        pixels), kept where the camera's region holds the pixel (0 elsewhere); the
-        regions are disjoint, so a cell's pairs add up; a pixel no pair holds is
-        ``OUTSIDE``.
+        ``values`` ``(2, cells, s, s)`` are those of cells ``(b, a)``; cells ``(eb, ea)``
+        (no region touches them) read ``OUTSIDE``. For each (cell, camera) pair the
+        bilinear interpolation of the camera's corner nodes with the resize's weights
+        (one ``cv2.gemm``: pairs x 4 corners times 4 x pixels), kept where the camera's
+        region holds the pixel; the regions are disjoint, so each pixel takes the pair
+        that holds it, ``OUTSIDE`` where none does.
         """
         import cv2
 
         s = self.step
-        values = np.full((2, fb.size, s * s), OUTSIDE, np.float32)
+        cn, nyc, nxc = hit.shape
         pk, pc = np.nonzero(hit[:, fb, fa].T)  # (cell, camera) pairs, by cell
-        if not pk.size:
-            return values.reshape(2, fb.size, s, s)
+        rank = np.arange(pk.size) - np.searchsorted(pk, pk)  # a cell's pairs: 0, 1, ...
+        if rank.any():  # by rank: each cell's first pair, then the second ones, ...
+            order = np.argsort(rank, kind='stable')
+            pk, pc, rank = pk[order], pc[order], rank[order]
+        ends = np.searchsorted(rank, np.arange(1, int(rank.max(initial=0)) + 2))
+        cells = int(ends[0])
         b, a = fb[pk], fa[pk]
-        corners = np.empty((2, pk.size, 4), np.float32)  # x/y, pair, corner
-        for db in (0, 1):
-            for da in (0, 1):
-                self._used[pc, b + db, a + da] = True
-                corners[:, :, 2 * db + da] = self._values[:, pc, b + db, a + da]
-        inner = cv2.gemm(corners.reshape(-1, 4), _weights(s), 1.0, cast(Any, None), 0.0,
-                         dst=self.buffers.scratch(2 * pk.size, s * s))
+        spare = np.ones(fb.size, bool)
+        spare[pk[:cells]] = False
+        if not pk.size:
+            return b, a, np.empty((2, 0, s, s), np.float32), fb[spare], fa[spare]
+        corners = (pc * (nyc + 1) + b) * (nxc + 1) + a
+        corners = corners[:, None] + self._corner_offsets(nxc + 1)  # (pairs, 4)
+        self._used.reshape(-1)[corners] = True
+        inner = cv2.gemm(self._values.reshape(2, -1)[:, corners].reshape(-1, 4), _weights(s),
+                         1.0, cast(Any, None), 0.0,
+                         dst=self.buffers.scratch(2 * pk.size, s * s)).reshape(2, pk.size, s * s)
         span = np.arange(s)
-        exact = np.flatnonzero(self._exact[pc, b, a])
-        if exact.size:  # the lens at every pixel of these pairs' cells
+        exact = np.flatnonzero(self._exact[pc, b, a]) if self.exact_cells else ()
+        if len(exact):  # the lens at every pixel of these pairs' cells
             projection, rotations, cx, cy = self._lens
             u = (a[exact, None, None] * s + span - cx).astype(np.float32)
             v = (b[exact, None, None] * s + span[:, None] - cy).astype(np.float32)
@@ -396,27 +424,22 @@ class GridMaps:
             _, x, y, side = projection._evaluate_soa(np.ascontiguousarray(rays), rotations,
                                                      only=label)
             x, y, _ = self._mosaic_pixels(projection, label, x, y, (side & 16) != 0)
-            inner = inner.reshape(2, pk.size, s * s)
-            inner[:, exact] = np.stack([x, y]).reshape(2, exact.size, s * s)
-        rows = b[:, None] * s + span  # (pairs, s)
+            inner[:, exact] = np.stack([x, y]).reshape(2, len(exact), s * s)
+        rows = (pc * (nyc * s) + b * s)[:, None] + span  # flat (camera, view row), (pairs, s)
         cols = (a[:, None] * s + span)[:, None, :]
-        inside = ((first[pc[:, None], rows][:, :, None] <= cols) &
-                  (cols <= last[pc[:, None], rows][:, :, None])).reshape(pk.size, s * s)
-        inner = inner.reshape(2, pk.size, s * s) * inside  # 0 outside its region
-        rank = np.arange(pk.size) - np.searchsorted(pk, pk)  # a cell's pairs: 0, 1, ...
-        one = rank == 0
-        total: np.ndarray = inner[:, one]
-        held = inside[one]
-        place = np.cumsum(one) - 1  # each pair's cell among those with pairs
-        for r in range(1, int(rank.max()) + 1):  # rarely more than one more
-            one = rank == r
-            total[:, place[one]] += inner[:, one]
-            held[place[one]] |= inside[one]
-        values[:, pk[rank == 0]] = np.where(held, total, np.float32(OUTSIDE))
-        return values.reshape(2, fb.size, s, s)
+        outside = ((first.reshape(-1)[rows][:, :, None] > cols) |
+                   (cols > last.reshape(-1)[rows][:, :, None])).reshape(pk.size, s * s)
+        values = inner[:, :cells]
+        np.copyto(values, np.float32(OUTSIDE), where=outside[:cells])
+        for r0, r1 in zip(ends[:-1], ends[1:]):  # a cell's further pairs (rarely two)
+            place = np.searchsorted(pk[:cells], pk[r0:r1])
+            more = values[:, place]
+            np.copyto(more, inner[:, r0:r1], where=~outside[r0:r1])
+            values[:, place] = more
+        return b[:cells], a[:cells], values.reshape(2, cells, s, s), fb[spare], fa[spare]
 
-    def _fill(self) -> None:
-        """Resize the node grid into :attr:`buffer`, then write the pixel by pixel cells."""
+    def _fill(self, fix: Tuple[np.ndarray, ...]) -> None:
+        """Resize the node grid into :attr:`buffer`, then write the cells of :meth:`_by_pixel`."""
         import cv2
 
         s, buffer = self.step, self.buffer
@@ -425,13 +448,15 @@ class GridMaps:
         for plane, nodes in zip(buffer, self.nodes):
             cv2.resize(nodes, (plane.shape[1], plane.shape[0]), dst=plane,
                        interpolation=cv2.INTER_LINEAR)
-        fb, fa, values = self._fix
-        if fb.size:
-            rs, cs = buffer.strides[1:]
-            for plane, v in zip(buffer, values):
-                blocks = np.lib.stride_tricks.as_strided(
-                    plane[h0:, h0:], (nyc, s, nxc, s), (s * rs, rs, s * cs, cs))
+        fb, fa, values, eb, ea = fix
+        rs, cs = buffer.strides[1:]
+        for plane, v in zip(buffer, values):
+            blocks = np.lib.stride_tricks.as_strided(
+                plane[h0:, h0:], (nyc, s, nxc, s), (s * rs, rs, s * cs, cs))
+            if fb.size:
                 blocks[fb, :, fa] = v
+            if eb.size:
+                blocks[eb, :, ea] = OUTSIDE
 
     def full_map(self) -> np.ndarray:
         """Return the map as one ``(H, W, 2)`` float32 array (a copy of :attr:`map_x`, ``_y``)."""
