@@ -127,6 +127,18 @@ class GridBuffers:
     def __init__(self) -> None:
         self.maps: Optional[np.ndarray] = None
         self._scratch = np.empty(0, np.float32)
+        self._tables: Dict[Tuple[Any, ...], Dict[str, np.ndarray]] = {}
+
+    def tables(self, step: int, cameras: int, nyc: int, nxc: int, cx: float,
+               cy: float) -> Dict[str, np.ndarray]:
+        """Return :func:`_index_tables` for these arguments (kept for the next poses)."""
+        key = (step, cameras, nyc, nxc, cx, cy)
+        tables = self._tables.get(key)
+        if tables is None:
+            if len(self._tables) >= 8:
+                self._tables.clear()
+            tables = self._tables[key] = _index_tables(*key)
+        return tables
 
     def scratch(self, rows: int, columns: int) -> np.ndarray:
         """Return a float32 ``(rows, columns)`` array (its contents undefined)."""
@@ -134,6 +146,35 @@ class GridBuffers:
         if self._scratch.size < need:
             self._scratch = np.empty(max(need, 2 * self._scratch.size), np.float32)
         return self._scratch[:need].reshape(rows, columns)
+
+
+def _index_tables(s: int, cameras: int, nyc: int, nxc: int, cx: float,
+                  cy: float) -> Dict[str, np.ndarray]:
+    """
+    Return per flat index what depends only on the view's size, the step and the cameras.
+
+    Nodes ``(camera, row b, column a)`` of ``cameras x (nyc + 1) x (nxc + 1)``:
+    ``node_u``/``node_v``, the view pixel offsets ``(a s - 1/2 - cx, b s - 1/2 - cy)``
+    (float32); cells ``(camera, b, a)`` of ``cameras x nyc x nxc``: ``cell_u``/``cell_v``,
+    their centres' offsets, ``cell_cam`` their camera's index and ``cell_node`` their top
+    left node; cells ``(b, a)``: ``cell_base``, the flat index of the cell's first pixel
+    in a plane of :meth:`GridMaps.buffer_shape`, and ``pixel``, the flat offsets of the
+    cell's ``s x s`` pixels in it.
+    """
+    ny, nx = nyc + 1, nxc + 1
+    b, a = np.divmod(np.arange(ny * nx), nx)
+    hb, ha = np.divmod(np.arange(nyc * nxc), nxc)
+    cell_cam = np.repeat(np.arange(cameras), nyc * nxc)
+    width, h0, span = nx * s, s // 2, np.arange(s)
+    return {
+        'node_u': np.tile((a * s - 0.5 - cx).astype(np.float32), cameras),
+        'node_v': np.tile((b * s - 0.5 - cy).astype(np.float32), cameras),
+        'cell_u': np.tile((ha * s + (0.5 * s - 0.5) - cx).astype(np.float32), cameras),
+        'cell_v': np.tile((hb * s + (0.5 * s - 0.5) - cy).astype(np.float32), cameras),
+        'cell_cam': cell_cam,
+        'cell_node': (cell_cam * ny + np.tile(hb, cameras)) * nx + np.tile(ha, cameras),
+        'cell_base': (h0 + hb * s) * width + h0 + ha * s,
+        'pixel': (span[:, None] * width + span).reshape(-1)}
 
 
 @lru_cache(maxsize=8)
@@ -184,6 +225,8 @@ class GridMaps:
         self._sizes = [(c.width, c.height) for c in projection.rig.cameras]
         self._rects: Optional[Dict[int, Rect]] = None
         self._lens = (projection, rotations, cx, cy)
+        self.buffers = buffers if buffers is not None else GridBuffers()
+        """Arrays reused from pose to pose (pass them to the next pose's maps)."""
         limit = CHECK_FRACTION * tolerance_px
         for s in sorted({max(2, (step >> k) & ~1) for k in range(3)}, reverse=True):
             cells = self._cells(s)
@@ -191,17 +234,15 @@ class GridMaps:
             if self.worst_px <= limit:
                 break
         # cells still beyond the limit at the finest step are evaluated pixel by pixel
-        hc, hb, ha, error = self._cell_error
+        cell, error = self._cell_error
         beyond = error > limit
         self._exact = np.zeros(cells[2].shape, bool)
-        self._exact[hc[beyond], hb[beyond], ha[beyond]] = True
-        self.exact_cells = int(beyond.sum())
+        self._exact.reshape(-1)[cell[beyond]] = True
+        self.exact_cells = int(np.count_nonzero(beyond))
         """How many (cell, camera) pairs are evaluated exactly at every pixel."""
         self.step = s
         """View pixels between the nodes (``step``, halved while a cell's error is too large)."""
         shape = self.buffer_shape(plan.width, plan.height, s)
-        self.buffers = buffers if buffers is not None else GridBuffers()
-        """Arrays reused from pose to pose (pass them to the next pose's maps)."""
         buffer = self.buffers.maps
         if buffer is None or buffer.shape != shape:
             buffer = self.buffers.maps = np.empty(shape, np.float32)
@@ -230,8 +271,8 @@ class GridMaps:
         plan = self.plan
         width, height, cams = plan.width, plan.height, self._cams
         nxc, nyc = -(-width // s), -(-height // s)
-        first = np.full((len(cams), nyc * s), width, np.int64)
-        last = np.full((len(cams), nyc * s), -1, np.int64)
+        first = np.full((len(cams), nyc * s), width, np.int32)
+        last = np.full((len(cams), nyc * s), -1, np.int32)
         for c, i in enumerate(cams):
             y0, lo, hi = plan.regions[int(i)]
             first[c, y0:y0 + len(lo)] = lo
@@ -239,8 +280,8 @@ class GridMaps:
         first[:, height:] = first[:, height - 1:height]
         last[:, height:] = last[:, height - 1:height]
         fc, lc = first.reshape(len(cams), nyc, s), last.reshape(len(cams), nyc, s)
-        left = np.arange(nxc) * s
-        right = np.minimum(left + s - 1, width - 1)
+        left = np.arange(0, nxc * s, s, dtype=np.int32)
+        right = np.minimum(left + (s - 1), width - 1)
         hit = (left <= lc.max(axis=2)[..., None]) & (right >= fc.min(axis=2)[..., None])
         full = (left >= fc.max(axis=2)[..., None]) & (right <= lc.min(axis=2)[..., None])
         return first, last, hit, full
@@ -263,41 +304,41 @@ class GridMaps:
         need[:, 1:, :-1] |= hit
         need[:, :-1, 1:] |= hit
         need[:, 1:, 1:] |= hit
+        tables = self.buffers.tables(s, cn, nyc, nxc, cx, cy)
         node = np.flatnonzero(need)  # flat (camera, row, column) of the nodes
-        nc, rest = np.divmod(node, ny * nx)
-        nb, na = np.divmod(rest, nx)
-        hc, rest = np.divmod(np.flatnonzero(hit), nyc * nxc)
-        hb, ha = np.divmod(rest, nxc)
-        count = nb.size
-        rays = np.empty((3, count + hb.size), np.float32)
-        rays[0, :count] = na * s - 0.5 - cx
-        rays[1, :count] = nb * s - 0.5 - cy
-        rays[0, count:] = ha * s + (0.5 * s - 0.5) - cx
-        rays[1, count:] = hb * s + (0.5 * s - 0.5) - cy
+        cell = np.flatnonzero(hit)  # flat (camera, row, column) of the cells
+        count = node.size
+        rays = np.empty((3, count + cell.size), np.float32)
+        rays[0, :count] = tables['node_u'][node]
+        rays[1, :count] = tables['node_v'][node]
+        rays[0, count:] = tables['cell_u'][cell]
+        rays[1, count:] = tables['cell_v'][cell]
         rays[2] = 1.0
-        label = cams[np.concatenate([nc, hc])]
+        label = cams[np.concatenate([node // (ny * nx), tables['cell_cam'][cell]])]
         _, px, py, side = projection._evaluate_soa(rays, rotations, only=label)
         bad = (side & 16) != 0
         # the bilinear interpolation at each cell's centre (its four corner nodes, all
         # evaluated) against the exact value, where the cell's corners and centre have
         # pixels
-        raw = np.empty((2, cn * ny * nx), np.float32)
-        raw[0, node] = px[:count]
-        raw[1, node] = py[:count]
+        corners = tables['cell_node'][cell] + np.array([[0], [nx], [1], [nx + 1]])
+        error = None
+        for exact, v in ((px, px[count:]), (py, py[count:])):
+            raw = np.empty(cn * ny * nx, np.float32)
+            raw[node] = exact[:count]
+            at = raw[corners]
+            e = np.abs(0.25 * (at[0] + at[1] + at[2] + at[3]) - v)
+            error = e if error is None else np.maximum(error, e)
+        assert error is not None
         invalid = np.empty(cn * ny * nx, bool)
         invalid[node] = bad[:count]
-        corners = ((hc * ny + hb) * nx + ha) + np.array([[0], [nx], [1], [nx + 1]])
-        error = np.abs(0.25 * raw[:, corners].sum(axis=1) - (px[count:], py[count:])).max(
-            axis=0)
         error[bad[count:] | invalid[corners].any(axis=0)] = 0.0
         self.worst_px = float(error.max(initial=0.0))
-        self._cell_error = (hc, hb, ha, error)  # per cell touched: camera, row, column
+        self._cell_error = (cell, error)  # per cell touched: flat index, error
         x, y, far_node = self._mosaic_pixels(projection, label[:count], px[:count],
                                              py[:count], bad[:count])
         values = np.full((2, cn, ny, nx), FAR, np.float32)
-        flat = values.reshape(2, -1)
-        flat[0, node] = x
-        flat[1, node] = y
+        values[0].reshape(-1)[node] = x
+        values[1].reshape(-1)[node] = y
         far = np.ones(need.shape, bool)
         far.reshape(-1)[node] = far_node
         return values, far
@@ -318,11 +359,12 @@ class GridMaps:
         fewer camera pixels than the gap), black in the camera's own image as well.
         """
         reach = self._layout.gap - 2.0
-        size = projection._sizes[label]
-        far = bad | (x < -reach) | (x > size[:, 0] - 1.0 + reach) | \
-            (y < -reach) | (y > size[:, 1] - 1.0 + reach)
-        offsets = np.asarray(self._layout.offsets, np.float32)[label]
-        return (np.where(far, FAR, x + offsets[:, 0]), np.where(far, FAR, y + offsets[:, 1]),
+        sizes = projection._sizes  # per camera (the few cameras, then gathered per pixel)
+        high_x, high_y = sizes[:, 0] - 1.0 + reach, sizes[:, 1] - 1.0 + reach
+        offsets = np.asarray(self._layout.offsets, np.float32)
+        offset_x, offset_y = offsets[:, 0].copy(), offsets[:, 1].copy()
+        far = bad | (x < -reach) | (x > high_x[label]) | (y < -reach) | (y > high_y[label])
+        return (np.where(far, FAR, x + offset_x[label]), np.where(far, FAR, y + offset_y[label]),
                 far)
 
     def _assemble(self, first: np.ndarray, last: np.ndarray, hit: np.ndarray,
@@ -339,14 +381,16 @@ class GridMaps:
         pure = full & (count == 1)
         if self.exact_cells:
             pure &= ~self._exact.any(axis=0)
-        pc, cell = np.divmod(np.flatnonzero(pure), nyc * nxc)
-        code.reshape(-1)[cell] = pc
+        pure_cells = np.flatnonzero(pure)  # flat (camera, row, column)
+        pc = pure_cells // (nyc * nxc)
+        code.reshape(-1)[pure_cells - pc * (nyc * nxc)] = pc
         owner = self._owners(code, empty)
         taken = np.flatnonzero((owner >= 0) & (owner < empty))  # flat (row, column)
         source = owner.reshape(-1)[taken].astype(np.intp) * owner.size + taken  # flat (c, b, a)
         self.nodes = np.full((2,) + owner.shape, OUTSIDE, np.float32)
         """The node grid :attr:`buffer` is resized from: x and y (mosaic pixels)."""
-        self.nodes.reshape(2, -1)[:, taken] = self._values.reshape(2, -1)[:, source]
+        for nodes, values in zip(self.nodes, self._values):
+            nodes.reshape(-1)[taken] = values.reshape(-1)[source]
         self._used = np.zeros(self._far.shape, bool)  # the nodes the map interpolates
         self._used.reshape(-1)[source] = True
         fb, fa = np.divmod(np.flatnonzero(code < 0), nxc)
@@ -410,8 +454,10 @@ class GridMaps:
         corners = (pc * (nyc + 1) + b) * (nxc + 1) + a
         corners = corners[:, None] + self._corner_offsets(nxc + 1)  # (pairs, 4)
         self._used.reshape(-1)[corners] = True
-        inner = cv2.gemm(self._values.reshape(2, -1)[:, corners].reshape(-1, 4), _weights(s),
-                         1.0, cast(Any, None), 0.0,
+        at = np.empty((2, pk.size, 4), np.float32)  # x/y, pair, corner
+        for plane, values in zip(at, self._values):
+            plane[...] = values.reshape(-1)[corners]
+        inner = cv2.gemm(at.reshape(-1, 4), _weights(s), 1.0, cast(Any, None), 0.0,
                          dst=self.buffers.scratch(2 * pk.size, s * s)).reshape(2, pk.size, s * s)
         span = np.arange(s)
         exact = np.flatnonzero(self._exact[pc, b, a]) if self.exact_cells else ()
@@ -426,7 +472,7 @@ class GridMaps:
             x, y, _ = self._mosaic_pixels(projection, label, x, y, (side & 16) != 0)
             inner[:, exact] = np.stack([x, y]).reshape(2, len(exact), s * s)
         rows = (pc * (nyc * s) + b * s)[:, None] + span  # flat (camera, view row), (pairs, s)
-        cols = (a[:, None] * s + span)[:, None, :]
+        cols = (a[:, None] * s + span).astype(np.int32)[:, None, :]
         outside = ((first.reshape(-1)[rows][:, :, None] > cols) |
                    (cols > last.reshape(-1)[rows][:, :, None])).reshape(pk.size, s * s)
         values = inner[:, :cells]
@@ -443,20 +489,18 @@ class GridMaps:
         import cv2
 
         s, buffer = self.step, self.buffer
-        h0 = s // 2
         nyc, nxc = self.nodes.shape[1] - 1, self.nodes.shape[2] - 1
         for plane, nodes in zip(buffer, self.nodes):
             cv2.resize(nodes, (plane.shape[1], plane.shape[0]), dst=plane,
                        interpolation=cv2.INTER_LINEAR)
         fb, fa, values, eb, ea = fix
-        rs, cs = buffer.strides[1:]
+        tables = self.buffers.tables(s, len(self._cams), nyc, nxc, *self._lens[2:])
+        base, pixel = tables['cell_base'], tables['pixel']
+        at = (base[fb * nxc + fa][:, None] + pixel).reshape(-1)  # flat pixels of the cells
+        blank = (base[eb * nxc + ea][:, None] + pixel).reshape(-1)
         for plane, v in zip(buffer, values):
-            blocks = np.lib.stride_tricks.as_strided(
-                plane[h0:, h0:], (nyc, s, nxc, s), (s * rs, rs, s * cs, cs))
-            if fb.size:
-                blocks[fb, :, fa] = v
-            if eb.size:
-                blocks[eb, :, ea] = OUTSIDE
+            plane.reshape(-1)[at] = v.reshape(-1)
+            plane.reshape(-1)[blank] = OUTSIDE
 
     def full_map(self) -> np.ndarray:
         """Return the map as one ``(H, W, 2)`` float32 array (a copy of :attr:`map_x`, ``_y``)."""
@@ -467,11 +511,19 @@ class GridMaps:
         """Return per camera the rectangle of its image the map reads (with the taps)."""
         if self._rects is None:
             self._rects = {}
-            ok = self._used & ~self._far
+            ok = np.flatnonzero(self._used & ~self._far)  # flat (camera, row, column)
+            cn = len(self._cams)
+            cam = ok // (self._far.size // max(cn, 1))
+            starts = np.searchsorted(cam, np.arange(cn + 1))
+            some = starts[:-1] < starts[1:]
             offsets = np.asarray(self._layout.offsets, np.float32)[self._cams]
-            local = self._values - offsets.T[:, :, None, None]
-            low = np.where(ok, local, np.inf).min(axis=(2, 3))
-            high = np.where(ok, local, -np.inf).max(axis=(2, 3))
+            low = np.full((2, cn), np.inf, np.float32)
+            high = np.full((2, cn), -np.inf, np.float32)
+            for k, values in enumerate(self._values):
+                local = values.reshape(-1)[ok] - offsets[cam, k]
+                if local.size:
+                    low[k, some] = np.minimum.reduceat(local, starts[:-1][some])
+                    high[k, some] = np.maximum.reduceat(local, starts[:-1][some])
             for c, i in enumerate(int(k) for k in self._cams):
                 w, h = self._sizes[i]
                 if not np.isfinite(low[0, c]):
