@@ -157,24 +157,19 @@ def _index_tables(s: int, cameras: int, nyc: int, nxc: int, cx: float,
     ``node_u``/``node_v``, the view pixel offsets ``(a s - 1/2 - cx, b s - 1/2 - cy)``
     (float32); cells ``(camera, b, a)`` of ``cameras x nyc x nxc``: ``cell_u``/``cell_v``,
     their centres' offsets, ``cell_cam`` their camera's index and ``cell_node`` their top
-    left node; cells ``(b, a)``: ``cell_base``, the flat index of the cell's first pixel
-    in a plane of :meth:`GridMaps.buffer_shape`, and ``pixel``, the flat offsets of the
-    cell's ``s x s`` pixels in it.
+    left node.
     """
     ny, nx = nyc + 1, nxc + 1
     b, a = np.divmod(np.arange(ny * nx), nx)
     hb, ha = np.divmod(np.arange(nyc * nxc), nxc)
     cell_cam = np.repeat(np.arange(cameras), nyc * nxc)
-    width, h0, span = nx * s, s // 2, np.arange(s)
     return {
         'node_u': np.tile((a * s - 0.5 - cx).astype(np.float32), cameras),
         'node_v': np.tile((b * s - 0.5 - cy).astype(np.float32), cameras),
         'cell_u': np.tile((ha * s + (0.5 * s - 0.5) - cx).astype(np.float32), cameras),
         'cell_v': np.tile((hb * s + (0.5 * s - 0.5) - cy).astype(np.float32), cameras),
         'cell_cam': cell_cam,
-        'cell_node': (cell_cam * ny + np.tile(hb, cameras)) * nx + np.tile(ha, cameras),
-        'cell_base': (h0 + hb * s) * width + h0 + ha * s,
-        'pixel': (span[:, None] * width + span).reshape(-1)}
+        'cell_node': (cell_cam * ny + np.tile(hb, cameras)) * nx + np.tile(ha, cameras)}
 
 
 @lru_cache(maxsize=8)
@@ -479,9 +474,11 @@ class GridMaps:
         np.copyto(values, np.float32(OUTSIDE), where=outside[:cells])
         for r0, r1 in zip(ends[:-1], ends[1:]):  # a cell's further pairs (rarely two)
             place = np.searchsorted(pk[:cells], pk[r0:r1])
-            more = values[:, place]
-            np.copyto(more, inner[:, r0:r1], where=~outside[r0:r1])
-            values[:, place] = more
+            held = ~outside[r0:r1]
+            for plane, pairs in zip(values, inner[:, r0:r1]):
+                more = plane[place]
+                np.copyto(more, pairs, where=held)
+                plane[place] = more
         return b[:cells], a[:cells], values.reshape(2, cells, s, s), fb[spare], fa[spare]
 
     def _fill(self, fix: Tuple[np.ndarray, ...]) -> None:
@@ -494,13 +491,13 @@ class GridMaps:
             cv2.resize(nodes, (plane.shape[1], plane.shape[0]), dst=plane,
                        interpolation=cv2.INTER_LINEAR)
         fb, fa, values, eb, ea = fix
-        tables = self.buffers.tables(s, len(self._cams), nyc, nxc, *self._lens[2:])
-        base, pixel = tables['cell_base'], tables['pixel']
-        at = (base[fb * nxc + fa][:, None] + pixel).reshape(-1)  # flat pixels of the cells
-        blank = (base[eb * nxc + ea][:, None] + pixel).reshape(-1)
-        for plane, v in zip(buffer, values):
-            plane.reshape(-1)[at] = v.reshape(-1)
-            plane.reshape(-1)[blank] = OUTSIDE
+        rs, cs = buffer.strides[1:]
+        h0 = s // 2
+        for plane, v in zip(buffer, values):  # the cells as (rows, columns, s, s)
+            cells = np.lib.stride_tricks.as_strided(
+                plane[h0:, h0:], (nyc, nxc, s, s), (s * rs, s * cs, rs, cs))
+            cells[fb, fa] = v
+            cells[eb, ea] = OUTSIDE
 
     def full_map(self) -> np.ndarray:
         """Return the map as one ``(H, W, 2)`` float32 array (a copy of :attr:`map_x`, ``_y``)."""
