@@ -120,8 +120,9 @@ class GridBuffers:
     The large arrays a view's :class:`GridMaps` reuse from pose to pose.
 
     :attr:`maps`: the resized node grid (x and y planes); :meth:`scratch`: the seam cells'
-    interpolation. A new array per pose cost page faults: ``cv2.gemm`` allocating its
-    0.5 MB output took 6-11 ms in one call of six on a busy 2-core machine (median 0.2 ms).
+    interpolation; :meth:`tables`: index tables of the node grid. A new array per pose
+    cost page faults: ``cv2.gemm`` allocating its 0.5 MB output took 6-11 ms in one call
+    of six on a busy 2-core machine (median 0.2 ms).
     """
 
     def __init__(self) -> None:
@@ -316,14 +317,13 @@ class GridMaps:
         # evaluated) against the exact value, where the cell's corners and centre have
         # pixels
         corners = tables['cell_node'][cell] + np.array([[0], [nx], [1], [nx + 1]])
-        error = None
-        for exact, v in ((px, px[count:]), (py, py[count:])):
-            raw = np.empty(cn * ny * nx, np.float32)
+        raw = np.empty(cn * ny * nx, np.float32)  # read at the evaluated nodes only
+        error = np.zeros(cell.size, np.float32)
+        for exact in (px, py):
             raw[node] = exact[:count]
             at = raw[corners]
-            e = np.abs(0.25 * (at[0] + at[1] + at[2] + at[3]) - v)
-            error = e if error is None else np.maximum(error, e)
-        assert error is not None
+            np.maximum(error, np.abs(0.25 * (at[0] + at[1] + at[2] + at[3]) - exact[count:]),
+                       out=error)
         invalid = np.empty(cn * ny * nx, bool)
         invalid[node] = bad[:count]
         error[bad[count:] | invalid[corners].any(axis=0)] = 0.0
@@ -357,7 +357,7 @@ class GridMaps:
         sizes = projection._sizes  # per camera (the few cameras, then gathered per pixel)
         high_x, high_y = sizes[:, 0] - 1.0 + reach, sizes[:, 1] - 1.0 + reach
         offsets = np.asarray(self._layout.offsets, np.float32)
-        offset_x, offset_y = offsets[:, 0].copy(), offsets[:, 1].copy()
+        offset_x, offset_y = offsets[:, 0], offsets[:, 1]
         far = bad | (x < -reach) | (x > high_x[label]) | (y < -reach) | (y > high_y[label])
         return (np.where(far, FAR, x + offset_x[label]), np.where(far, FAR, y + offset_y[label]),
                 far)
