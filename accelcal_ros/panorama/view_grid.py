@@ -55,6 +55,9 @@ remaps an 8-bit 4-channel 1280x720 image from a float map in 4.1 ms against 7.5 
 against 8.4 ms, so there the mosaic is remapped as it is."""
 CHECK_FRACTION = 0.75
 """Share of ``tolerance_px`` the error at a cell's centre may reach (as the lookup's)."""
+TABLES_KEPT_CELLS = 1 << 20
+"""Index tables of at most this many (camera, cell) pairs are kept from pose to pose
+(:meth:`GridBuffers.tables`: 5 cameras x 1280x720 at step 4 are 0.29 M)."""
 
 
 def four_channels() -> bool:
@@ -132,13 +135,20 @@ class GridBuffers:
 
     def tables(self, step: int, cameras: int, nyc: int, nxc: int, cx: float,
                cy: float) -> Dict[str, np.ndarray]:
-        """Return :func:`_index_tables` for these arguments (kept for the next poses)."""
+        """
+        Return :func:`_index_tables` for these arguments.
+
+        Kept for the next poses unless large (a view of millions of cells at a halved
+        step: about 30 bytes per camera and cell; those are made per pose).
+        """
         key = (step, cameras, nyc, nxc, cx, cy)
         tables = self._tables.get(key)
         if tables is None:
-            if len(self._tables) >= 8:
-                self._tables.clear()
-            tables = self._tables[key] = _index_tables(*key)
+            tables = _index_tables(*key)
+            if cameras * nyc * nxc <= TABLES_KEPT_CELLS:
+                if len(self._tables) >= 4:
+                    self._tables.clear()
+                self._tables[key] = tables
         return tables
 
     def scratch(self, rows: int, columns: int) -> np.ndarray:
