@@ -9,7 +9,7 @@ the other file's :class:`GridMaps` and with the installed one, alternating frame
 (the order rotated every frame), one OpenCV thread, CPU time of this thread; medians and
 ratios to the floor. The other file is, e.g., ``git show main~5:accelcal_ros/panorama/
 view_grid.py > /tmp/old_view_grid.py``.
-Run: ``python benchmarks/ab_view_grid.py OTHER_VIEW_GRID.py [--frames 300]``.
+Run: ``python benchmarks/bench_view_ab.py OTHER_VIEW_GRID.py [--frames 300]``.
 """
 import argparse
 import math
