@@ -167,8 +167,7 @@ def _index_tables(s: int, cameras: int, nyc: int, nxc: int, cx: float,
     Nodes ``(camera, row b, column a)`` of ``cameras x (nyc + 1) x (nxc + 1)``:
     ``node_u``/``node_v``, the view pixel offsets ``(a s - 1/2 - cx, b s - 1/2 - cy)``
     (float32); cells ``(camera, b, a)`` of ``cameras x nyc x nxc``: ``cell_u``/``cell_v``,
-    their centres' offsets, ``cell_cam`` their camera's index and ``cell_node`` their top
-    left node.
+    their centres' offsets, and ``cell_node`` their top left node.
     """
     ny, nx = nyc + 1, nxc + 1
     b, a = np.divmod(np.arange(ny * nx), nx)
@@ -179,7 +178,6 @@ def _index_tables(s: int, cameras: int, nyc: int, nxc: int, cx: float,
         'node_v': np.tile((b * s - 0.5 - cy).astype(np.float32), cameras),
         'cell_u': np.tile((ha * s + (0.5 * s - 0.5) - cx).astype(np.float32), cameras),
         'cell_v': np.tile((hb * s + (0.5 * s - 0.5) - cy).astype(np.float32), cameras),
-        'cell_cam': cell_cam,
         'cell_node': (cell_cam * ny + np.tile(hb, cameras)) * nx + np.tile(ha, cameras)}
 
 
@@ -320,20 +318,20 @@ class GridMaps:
         rays[0, count:] = tables['cell_u'][cell]
         rays[1, count:] = tables['cell_v'][cell]
         rays[2] = 1.0
-        label = cams[np.concatenate([node // (ny * nx), tables['cell_cam'][cell]])]
+        label = cams[np.concatenate([node // (ny * nx), cell // (nyc * nxc)])]
         _, px, py, side = projection._evaluate_soa(rays, rotations, only=label)
         bad = (side & 16) != 0
         # the bilinear interpolation at each cell's centre (its four corner nodes, all
         # evaluated) against the exact value, where the cell's corners and centre have
         # pixels
-        corners = tables['cell_node'][cell] + np.array([[0], [nx], [1], [nx + 1]])
+        corners = tables['cell_node'][cell] + self._corner_offsets(nx)[:, None]
         raw = np.empty(cn * ny * nx, np.float32)  # read at the evaluated nodes only
         error = np.zeros(cell.size, np.float32)
         for exact in (px, py):
             raw[node] = exact[:count]
             at = raw[corners]
-            np.maximum(error, np.abs(0.25 * (at[0] + at[1] + at[2] + at[3]) - exact[count:]),
-                       out=error)
+            np.maximum(error, np.abs(0.25 * (at[0] + at[2] + at[1] + at[3]) - exact[count:]),
+                       out=error)   # TL + BL + TR + BR: the order of the sums before
         invalid = np.empty(cn * ny * nx, bool)
         invalid[node] = bad[:count]
         error[bad[count:] | invalid[corners].any(axis=0)] = 0.0
