@@ -35,7 +35,7 @@ class FilterSettings:
     """Time constant of the low-pass used while moving (s): its lag."""
     jump_sigma: float = 5.0
     """A still average further than this many standard deviations of the fast one restarts."""
-    gyro_time_constant_s: float = 5.0
+    gyro_time_constant_s: float = 3.0
     """Complementary filter: time constant of the pull towards the accelerometer (s)."""
     rejection_deg: float = 2.0
     """Innovation beyond which the accelerometer is ignored (the platform accelerates; deg)."""
@@ -58,7 +58,7 @@ class FilterSettings:
     """The low-pass while moving when odometry removes the platform's acceleration (s):
     what is left is vibration and odometry noise (0.04 s would pass 0.3 deg of it), and
     the double low-pass does not lag behind the body's steady roll in a turn."""
-    vertical_aid_time_constant_s: float = 3.5
+    vertical_aid_time_constant_s: float = 2.5
     """While the accelerometer is rejected, the pull along the horizontal acceleration from
     the specific force's vertical component staying 1 g (s; 0: off; a vehicle)."""
 
@@ -89,8 +89,9 @@ BIAS_MIN_BLOCKS = 10
 MAX_GAP_S = 0.5
 """A larger gap between samples restarts the gyro state (s)."""
 BIAS_INTEGRAL_TIME_CONSTANT_S = 5.0
-"""Moving, accelerometer trusted: the integral term's time constant, in units of the
-proportional one (``ki = dt / (this * tau^2)``)."""
+"""Moving, accelerometer trusted: the integral term's gain ``ki = dt / (this * tau)``
+(s; ``tau``: ``gyro_time_constant_s``): the loop ``s^2 + s / tau + 1 / (this * tau)``,
+damping 0.65 at tau = 3 s."""
 G_SCALE_TIME_CONSTANT_S = 60.0
 """Memory of the specific force along "up" at rest (the 1 g the vertical aid expects)."""
 VERTICAL_AID_MIN_G = 0.03
