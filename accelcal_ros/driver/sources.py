@@ -241,7 +241,9 @@ class Adxl345Source:
         self._last_read, self._last_start, self._last_count = t_read, t_status, len(samples)
         if self.use_fifo:
             t_last = t_read
-            if edge is not None and len(samples) >= self.device.watermark:
+            # the edge dates the watermark sample only if nothing was lost since: after an
+            # overrun the FIFO holds the newest samples, the last one taken by t_read
+            if edge is not None and not overrun and len(samples) >= self.device.watermark:
                 t_last = min(t_read, edge + (len(samples) - self.device.watermark) * self.period)
             stamps = self._stamper.stamps(len(samples), t_last)
             self.stats.measured_rate_hz = self._stamper.measured_rate_hz

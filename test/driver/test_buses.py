@@ -275,6 +275,29 @@ def test_interrupt_reads_stamp_at_the_watermark_edge():
         assert np.max(np.abs(np.diff(stamps) * 800.0 - 1.0)) < 0.01
 
 
+def test_interrupt_reads_after_an_overrun_are_stamped_at_the_read_not_the_old_edge():
+    """
+    A first drain long after start: stamped at the read, not from the stale edge.
+
+    After a slow node start-up the FIFO overran and holds the newest 32 samples, so the
+    watermark edge (20 ms after start) no longer dates them. Stamped from the edge, the
+    batch ended at start + 40 ms, 0.2 s before it was read, and that batch anchored the
+    rate measurement (a 4 % long period for the next 10 s).
+    """
+    values = {s.name: s.default for s in DRIVER_PARAMS}
+    values.update(backend='sim', rate_hz=800.0, reads='interrupt',
+                  **{'sim.bus': 'spi', 'sim.poses_deg': [0.0, 0.0]})
+    source = make_source(values)
+    source.start()
+    started = time.time()   # the chip measures from before this: its edge by started + 20 ms
+    time.sleep(0.25)   # 200 samples: the 32-entry FIFO overruns
+    batch = source.poll()   # read after started + 0.25 s, whatever the load
+    after = time.time()
+    assert source.stats.fifo_overruns >= 1 and len(batch.stamps) == 32
+    assert started + 0.15 < batch.stamps[-1] <= after
+    assert np.all(np.diff(batch.stamps) > 0)
+
+
 def test_missing_gpio_chip_or_line_is_one_clear_line(monkeypatch):
     """A GPIO chip that is absent, or a line beyond its lines: DeviceError naming them."""
     from accelcal_ros.driver import gpio
