@@ -4,9 +4,13 @@ Streaming georeferencing (core of ``cloud_assembler``): scans + navigation poses
 Poses (time s, position m, quaternion xyzw; IMU body -> navigation frame) are appended in
 time order; one older than the newest is rejected (counted) -- a stream out of order is
 reported, never re-sorted. A scan (structured array with a per-point time field, plus its
-stamp) waits until the pose buffer covers its last point or ``max_wait_s`` passed, then
-is georeferenced with :func:`accelcal_ros.lidar.georef.georeference`; points outside the
-buffered poses are dropped and counted. Georeferenced points are accumulated (up to
+stamp) waits until the pose buffer covers its last point, then is georeferenced with
+:func:`accelcal_ros.lidar.georef.georeference`. The wait ends early when no pose has
+arrived for ``max_wait_s`` (counted from the later of the scan's and the newest pose's
+arrival: odometry that arrives late on a busy machine is waited for while it still
+comes, a stream that stopped is not) or when the waiting scans hold more than
+``max_pending_points`` (the oldest goes first); points outside the buffered poses are
+then dropped and counted. Georeferenced points are accumulated (up to
 ``max_points``, oldest first out) for saving to a file.
 """
 from collections import deque
@@ -26,7 +30,8 @@ class CloudAssembler:
 
     def __init__(self, boresight: ArrayLike, lever_arm_m: ArrayLike = (0.0, 0.0, 0.0),
                  time_field: Optional[str] = None, pose_buffer_s: float = 30.0,
-                 max_wait_s: float = 0.5, max_points: int = 5_000_000) -> None:
+                 max_wait_s: float = 0.5, max_points: int = 5_000_000,
+                 max_pending_points: int = 2_000_000) -> None:
         self.boresight = rotation_matrix_from_list(boresight, 'boresight', tolerance=1e-4)
         self.lever_arm_m = np.asarray(lever_arm_m, dtype=float).reshape(3)
         if not np.all(np.isfinite(self.lever_arm_m)):
@@ -35,6 +40,9 @@ class CloudAssembler:
         self.pose_buffer_s = pose_buffer_s
         self.max_wait_s = max_wait_s
         self.max_points = max_points
+        self.max_pending_points = max_pending_points
+        self._pending_points = 0
+        self._pose_arrival_s = -np.inf
         self._poses: Deque[Tuple[float, np.ndarray, np.ndarray]] = deque()
         self._pending: Deque[Tuple[float, np.ndarray, np.ndarray]] = deque()
         self._map: Deque[np.ndarray] = deque()
@@ -43,8 +51,14 @@ class CloudAssembler:
         self.totals = {'points': 0, 'kept': 0, 'before': 0, 'after': 0, 'non_finite': 0,
                        'scans': 0}
 
-    def add_pose(self, t: float, position: ArrayLike, quat_xyzw: ArrayLike) -> Optional[str]:
-        """Append a pose; returns None or the reason it was rejected (out of order, NaN)."""
+    def add_pose(self, t: float, position: ArrayLike, quat_xyzw: ArrayLike,
+                 now_s: Optional[float] = None) -> Optional[str]:
+        """
+        Append a pose; returns None or the reason it was rejected (out of order, NaN).
+
+        ``now_s`` is its arrival (the clock of :meth:`process`); a pose without one does
+        not extend a scan's wait.
+        """
         values = np.concatenate([[t], position, quat_xyzw]).astype(float)
         if not np.all(np.isfinite(values)):
             self.rejected_poses += 1
@@ -57,6 +71,8 @@ class CloudAssembler:
             return (f'pose at {t:.6f} s is not after the previous one ({self._poses[-1][0]:.6f}'
                     ' s): odometry out of order, dropped')
         self._poses.append((float(t), np.asarray(position, float), np.asarray(quat_xyzw, float)))
+        if now_s is not None:
+            self._pose_arrival_s = float(now_s)
         while self._poses and self._poses[0][0] < t - self.pose_buffer_s:
             self._poses.popleft()
         return None
@@ -65,6 +81,7 @@ class CloudAssembler:
         """Queue a scan; raises InputError when it has no per-point time field."""
         times = point_times(cloud, stamp_s, self.time_field)
         self._pending.append((now_s, cloud, times))
+        self._pending_points += len(cloud)
 
     def pose_stream(self) -> Optional[PoseStream]:
         """Return the buffered poses as a PoseStream (None with fewer than 2)."""
@@ -75,16 +92,25 @@ class CloudAssembler:
                           np.array([p[2] for p in self._poses]))
 
     def process(self, now_s: float, force: bool = False) -> List[Tuple[np.ndarray, Any]]:
-        """Georeference every ready scan; returns ``[(cloud_nav, stats)]``."""
+        """
+        Georeference every ready scan; returns ``[(cloud_nav, stats)]``.
+
+        A scan is ready when the poses cover its last point, when no pose arrived within
+        ``max_wait_s`` of ``now_s`` (nor the scan itself), when the waiting scans hold more
+        than ``max_pending_points``, or with ``force``.
+        """
         out = []
         while self._pending:
             queued, cloud, times = self._pending[0]
             newest = self._poses[-1][0] if self._poses else -np.inf
             finite_t = times[np.isfinite(times)]
             last = finite_t.max() if finite_t.size else -np.inf
-            if not force and newest < last and now_s - queued < self.max_wait_s:
+            waiting = now_s - max(queued, self._pose_arrival_s) < self.max_wait_s
+            if (not force and newest < last and waiting
+                    and self._pending_points <= self.max_pending_points):
                 break
             self._pending.popleft()
+            self._pending_points -= len(cloud)
             out.append(self._georeference(cloud, times))
         return out
 

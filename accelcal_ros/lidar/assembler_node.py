@@ -134,7 +134,7 @@ class CloudAssemblerNode(Node):
         with self._lock:
             reason = self._core.add_pose(stamp_to_seconds(msg.header.stamp),
                                          [pose.position.x, pose.position.y, pose.position.z],
-                                         [q.x, q.y, q.z, q.w])
+                                         [q.x, q.y, q.z, q.w], time.monotonic())
             if msg.header.frame_id:
                 self._nav_frame = msg.header.frame_id
         if reason:

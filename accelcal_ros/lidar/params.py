@@ -117,7 +117,9 @@ CLOUD_ASSEMBLER_PARAMS = (
               validator=_origin_ok, read_only=True, unit='m'),
     ParamSpec('save_voxel_m', 0.0, 'thin the saved cloud to one point per voxel of this size '
               '(0 = every point)', minimum=0.0, maximum=100.0, unit='m'),
-    ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it',
+    ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it, counted '
+              'from the arrival of the newest pose (late odometry is waited for while it still '
+              'comes)',
               minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,
               maximum=3600.0, unit='s', read_only=True),
