@@ -10,8 +10,9 @@ arrived for ``max_wait_s`` (counted from the later of the scan's and the newest 
 arrival: odometry that arrives late on a busy machine is waited for while it still
 comes, a stream that stopped is not) or when the waiting scans hold more than
 ``max_pending_points`` (the oldest goes first); points outside the buffered poses are
-then dropped and counted. Georeferenced points are accumulated (up to
-``max_points``, oldest first out) for saving to a file.
+then dropped and counted, as are those between two poses further apart than
+``max_gap_s`` (lost odometry: never interpolated across). Georeferenced points are
+accumulated (up to ``max_points``, oldest first out) for saving to a file.
 """
 from collections import deque
 from typing import Any, Deque, List, Optional, Tuple
@@ -31,7 +32,8 @@ class CloudAssembler:
     def __init__(self, boresight: ArrayLike, lever_arm_m: ArrayLike = (0.0, 0.0, 0.0),
                  time_field: Optional[str] = None, pose_buffer_s: float = 30.0,
                  max_wait_s: float = 0.5, max_points: int = 5_000_000,
-                 max_pending_points: int = 2_000_000) -> None:
+                 max_pending_points: int = 2_000_000,
+                 max_gap_s: Optional[float] = None) -> None:
         self.boresight = rotation_matrix_from_list(boresight, 'boresight', tolerance=1e-4)
         self.lever_arm_m = np.asarray(lever_arm_m, dtype=float).reshape(3)
         if not np.all(np.isfinite(self.lever_arm_m)):
@@ -41,6 +43,8 @@ class CloudAssembler:
         self.max_wait_s = max_wait_s
         self.max_points = max_points
         self.max_pending_points = max_pending_points
+        self.max_gap_s = max_gap_s
+        """Longest pose gap (s) interpolated across; None: no limit."""
         self._pending_points = 0
         self._pose_arrival_s = -np.inf
         self._poses: Deque[Tuple[float, np.ndarray, np.ndarray]] = deque()
@@ -49,7 +53,7 @@ class CloudAssembler:
         self._map_points = 0
         self.rejected_poses = 0
         self.totals = {'points': 0, 'kept': 0, 'before': 0, 'after': 0, 'non_finite': 0,
-                       'scans': 0}
+                       'in_gap': 0, 'scans': 0}
 
     def add_pose(self, t: float, position: ArrayLike, quat_xyzw: ArrayLike,
                  now_s: Optional[float] = None) -> Optional[str]:
@@ -122,7 +126,7 @@ class CloudAssembler:
             stats = None
         else:
             pts, keep, stats = georeference(xyz(cloud), times, poses, self.boresight,
-                                            self.lever_arm_m)
+                                            self.lever_arm_m, max_gap_s=self.max_gap_s)
         nav = make_cloud(pts, cloud['intensity'][keep] if 'intensity' in names else None,
                          cloud['ring'][keep] if 'ring' in names else None, times[keep],
                          'timestamp', double=True)
@@ -135,6 +139,7 @@ class CloudAssembler:
             self.totals['before'] += stats.before_span
             self.totals['after'] += stats.after_span
             self.totals['non_finite'] += stats.non_finite
+            self.totals['in_gap'] += stats.in_gap
         if len(nav):
             self._map.append(nav)
             self._map_points += len(nav)
@@ -153,8 +158,9 @@ class CloudAssembler:
         """Return a one-line summary of what was processed."""
         t = self.totals
         return (f'{t["scans"]} scans, {t["kept"]} of {t["points"]} points georeferenced '
-                f'({t["before"]} before / {t["after"]} after the poses, {t["non_finite"]} '
-                f'non-finite dropped), {self.rejected_poses} poses rejected')
+                f'({t["before"]} before / {t["after"]} after the poses, {t["in_gap"]} in pose '
+                f'gaps, {t["non_finite"]} non-finite dropped), {self.rejected_poses} poses '
+                'rejected')
 
 
 def check_time_field(cloud: np.ndarray, field: Optional[str] = None) -> str:

@@ -21,8 +21,9 @@ Dropped input, counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter`
 (``cloud_assembler: dropped messages``) and logged at most every 10 s per kind:
 ``scans`` (no x/y/z or time field, a bad layout, or no odometry yet) and ``odometry``
 (NaN, a quaternion of norm != 1, a stamp not after the previous one). Points of a scan
-outside the odometry's time span are dropped, never extrapolated (said once, counted
-in the scan totals).
+outside the odometry's time span, or between two poses further apart than
+``max_pose_gap_s``, are dropped, never extrapolated or interpolated across (said once,
+counted in the scan totals).
 """
 import threading
 import time
@@ -66,7 +67,8 @@ class CloudAssemblerNode(Node):
         boresight = (load_boresight(p['boresight_file']) if p['boresight_file'] else
                      rotation_from_rpy_radians(*np.radians(p['boresight_rpy_deg'])))
         self._core = CloudAssembler(boresight, p['lever_arm_m'], p['time_field'] or None,
-                                    p['pose_buffer_s'], p['max_wait_s'], p['max_points'])
+                                    p['pose_buffer_s'], p['max_wait_s'], p['max_points'],
+                                    max_gap_s=p['max_pose_gap_s'] or None)
         self._lock = threading.Lock()
         self._nav_frame = 'map'
         self._warned = set()
@@ -102,6 +104,9 @@ class CloudAssemblerNode(Node):
         if name == 'max_wait_s':
             with self._lock:
                 self._core.max_wait_s = float(value)
+        elif name == 'max_pose_gap_s':
+            with self._lock:
+                self._core.max_gap_s = float(value) or None
 
     def _publish_diagnostics(self):
         with self._lock:
@@ -117,6 +122,7 @@ class CloudAssemblerNode(Node):
                   'points_georeferenced': totals['kept'],
                   'points_before_poses': totals['before'],
                   'points_after_poses': totals['after'],
+                  'points_in_pose_gaps': totals['in_gap'],
                   'points_non_finite': totals['non_finite'], 'poses_rejected': rejected,
                   'boresight': 'identity (none given)' if self._no_boresight else 'given',
                   'output_file': self.params['output_file'], 'last_save': self._last_save}
@@ -158,7 +164,7 @@ class CloudAssemblerNode(Node):
                 continue
             if not len(nav):
                 continue
-            if stats.before_span or stats.after_span:
+            if stats.before_span or stats.after_span or stats.in_gap:
                 self._warn_once('span', f'{stats.summary()} (points outside the odometry '
                                         'are dropped, never extrapolated)')
             if self.params['map_crs']:

@@ -121,6 +121,10 @@ CLOUD_ASSEMBLER_PARAMS = (
               'from the arrival of the newest pose (late odometry is waited for while it still '
               'comes)',
               minimum=0.0, maximum=10.0, unit='s'),
+    ParamSpec('max_pose_gap_s', 0.25, 'points between two odometry poses further apart '
+              'than this are dropped and counted, never interpolated across the gap (lost '
+              'odometry on a moving platform; 0 = no limit)', minimum=0.0, maximum=3600.0,
+              unit='s'),
     ParamSpec('pose_buffer_s', 30.0, 'odometry kept for interpolation', minimum=1.0,
               maximum=3600.0, unit='s', read_only=True),
     ParamSpec('points_reliable', False, 'subscribe to points with reliable QoS (drivers that '
