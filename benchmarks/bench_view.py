@@ -158,13 +158,12 @@ def part2(args, rig, images, pitch):
         return views
 
     def view_job(views, name, move, k):
-        with views.lock:
-            view = views.views[name]
-            if move:
-                i = int(name[1:])
-                view.set_pose(ViewPose.from_degrees(-60 + 24 * i + 0.5 * (k % 20), 0, 60))
-            image = views.render_view(view)
-        encode_jpeg(image, 80)
+        if move:
+            i = int(name[1:])
+            views.set_pose(name, ViewPose.from_degrees(-60 + 24 * i + 0.5 * (k % 20), 0, 60))
+        with views.drawing(name) as (_, image):
+            pass
+        encode_jpeg(image, 80)   # as accelcal serve: outside the drawing
 
     def stitch_job(k):
         stitcher.update(0.0, pitch, frame_sets[k % 4])

@@ -7,7 +7,8 @@ stitcher already has -- every camera's frames, matched into sets with the attitu
 one subscription per camera and decides the frame sets once; a second node would receive
 every multi-megabyte frame a second time. The views render in a thread of their own
 (:class:`RoiViews`), so the panorama's latency does not grow with them, and only views
-somebody subscribes to are rendered.
+somebody subscribes to are rendered; several views are drawn at once by
+:data:`DRAW_THREADS` threads (:meth:`~.view_set.ViewSet.drawing`).
 
 Per view ``<name>`` (parameter ``roi_views``: ``NAME`` or ``NAME:AZ,EL,FOV_H`` in
 degrees; set it at run time to add, remove or point views):
@@ -29,6 +30,7 @@ before the views' thread rendered it (``roi_frame_sets``: the views fall behind)
 counted in the node's :class:`~accelcal_ros.rosutil.drops.DropCounter` and logged at most
 every 10 s.
 """
+from concurrent.futures import ThreadPoolExecutor
 import threading
 
 from accelcal_ros.errors import AccelcalError, InputError
@@ -42,6 +44,9 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
 VIEW_QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
+DRAW_THREADS = 2
+"""Views of one frame set drawn at once (the remap, the JPEG and the copies release the
+GIL; a 2-core machine's cores)."""
 
 
 class RoiViews:
@@ -56,6 +61,7 @@ class RoiViews:
         self._cond = threading.Condition()
         self._stop = False
         self._warned = set()
+        self._pool = None
         self._thread = None
         self.server = None
         self.published = 0
@@ -144,6 +150,8 @@ class RoiViews:
             self._cond.notify()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
         if self.server is not None:
             self.server.stop()
 
@@ -175,19 +183,31 @@ class RoiViews:
                              frame_set.stamp_s)
         total_ns = int(round(frame_set.stamp_s * 1e9))
         sec, nanosec = divmod(total_ns, 1_000_000_000)
-        for name in wanted:
-            with self.views.lock:
-                view = self.views.views.get(name)
-                io = self._io.get(name)
-                if view is None or io is None:
-                    continue
-                image = self.views.render_view(view)
+        if len(wanted) == 1:
+            self.published += self._publish(wanted[0], sec, nanosec)
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(DRAW_THREADS, thread_name_prefix='roi_draw')
+        self.published += sum(self._pool.map(
+            lambda name: self._publish(name, sec, nanosec), wanted))
+
+    def _publish(self, name, sec, nanosec):
+        """Draw view ``name`` of the frame set and publish it; return 1 (0: removed)."""
+        io = self._io.get(name)
+        if io is None:
+            return 0
+        try:
+            with self.views.drawing(name) as (view, image):
                 k = view.camera_matrix
                 frame_id = f'{self.frame_id}_roi_{name}'
                 data = image_cdr(image, self.encoding, sec, nanosec, frame_id)
-            io[0].publish(data)
-            io[1].publish(self._camera_info(k, image.shape, sec, nanosec, frame_id))
-            self.published += 1
+        except InputError:
+            if name not in self.views.names():  # removed meanwhile
+                return 0
+            raise
+        io[0].publish(data)
+        io[1].publish(self._camera_info(k, image.shape, sec, nanosec, frame_id))
+        return 1
 
     @staticmethod
     def _camera_info(k, shape, sec, nanosec, frame_id):

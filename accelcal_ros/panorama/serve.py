@@ -273,10 +273,10 @@ class ViewServer:
         if 'ack' in data:
             state['acked'] = True
         if {'az', 'el', 'fov'} & set(data):
-            view = self.views.views.get(name)
-            if view is None:
+            try:
+                az, el, fov = self.views.pose(name).degrees()
+            except InputError:  # the view was removed meanwhile
                 return
-            az, el, fov = view.pose.degrees()
             try:
                 pose = ViewPose.from_degrees(data.get('az', az), data.get('el', el),
                                              data.get('fov', fov))
@@ -313,23 +313,23 @@ class ViewServer:
             seen_frame = self.frame_number
 
             def render() -> Tuple[bytes, Dict[str, Any]]:
-                with self.views.lock:
-                    view = self.views.views[name]
-                    image = self.views.render_view(view)
+                with self.views.drawing(name) as (view, image):
                     az, el, fov = view.pose.degrees()
                     info = {'az': az, 'el': el, 'fov': fov, 'width': view.width,
                             'height': view.height, 'horizon_row': view.horizon_row(),
                             'covered': view.covered_fraction(), 'frame': seen_frame,
                             'name': name}
-                # the view's buffer is only rendered again by this tab, after this frame:
-                # encode outside the lock, so that other tabs render meanwhile
+                # the view's buffer is only drawn again by this tab, after this frame:
+                # encode outside the drawing, so that a new frame set need not wait
                 jpeg = encode_jpeg(image, self.jpeg_quality)
                 return jpeg, info
 
             try:
                 data, info = await loop.run_in_executor(None, render)
-            except KeyError:  # the view was removed meanwhile
-                return
+            except InputError:
+                if name not in self.views.names():  # the view was removed meanwhile
+                    return
+                raise
             state['acked'] = False
             state['sent'] += 1
             info['sent'] = state['sent']

@@ -35,6 +35,7 @@ set: the 4-channel camera images; per frame: the remap.
 """
 from functools import lru_cache
 import math
+import threading
 from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
@@ -74,7 +75,9 @@ class CameraSources:
     ``layout`` is the mosaic's :class:`~.mosaic.MosaicLayout`; :meth:`get` returns camera
     ``i``'s part of the mosaic: for a colour mosaic a 4-channel copy of which only the
     rectangle asked for is sure to be converted (once per ``version``: a view asking for
-    more converts only what is new), for grey the mosaic's own slice.
+    more converts only what is new), for grey the mosaic's own slice. Views drawing one
+    ``version`` at once may call :meth:`get` from their threads: what one converts lies
+    outside what the others read.
     """
 
     def __init__(self, layout: Any, sizes: List[Tuple[int, int]]) -> None:
@@ -83,15 +86,23 @@ class CameraSources:
         self._done: Dict[int, Rect] = {}
         self._buffer: Optional[np.ndarray] = None
         self._version: Any = object()
+        self._lock = threading.Lock()
 
     def get(self, mosaic: np.ndarray, i: int, rect: Rect, version: Any = None) -> np.ndarray:
         """Return camera ``i``'s image of ``mosaic``, right within ``rect`` (camera pixels)."""
-        import cv2
-
         (x0, y0), (w, h) = self.offsets[i], self.sizes[i]
         part = mosaic[y0:y0 + h, x0:x0 + w]
         if not (mosaic.ndim == 3 and mosaic.shape[2] == 3):
             return part
+        with self._lock:
+            return self._converted(mosaic, part, i, rect, version)
+
+    def _converted(self, mosaic: np.ndarray, part: np.ndarray, i: int, rect: Rect,
+                   version: Any) -> np.ndarray:
+        """Return camera ``i``'s 4-channel image, converting what ``rect`` adds (locked)."""
+        import cv2
+
+        (x0, y0), (w, h) = self.offsets[i], self.sizes[i]
         if version is None or version != self._version:
             self._done.clear()
             self._version = object() if version is None else version

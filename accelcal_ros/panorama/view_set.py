@@ -6,15 +6,27 @@ it with its own lookup (:class:`~.view.LevelledView`). Names are ROS name tokens
 become topics ``roi/<name>/image``): a letter, then letters, digits and single
 underscores, at most :data:`MAX_NAME_LENGTH` characters. At most ``max_views`` views
 exist at once; one more is refused with the cap in the message and the others keep
-working. Every method is thread-safe (one lock): a steering callback may move a view
-while another thread renders.
+working.
+
+Threads: every method is thread-safe, and views render at once. :meth:`ViewSet.drawing`
+renders one view while the frame set and that view hold still: many views draw together
+(OpenCV's remap and the JPEG encoder release the GIL: one thread per browser tab),
+:meth:`ViewSet.set_frame` waits until the frames being drawn are done and then goes
+before any newer drawing (:class:`FrameLock`), and :meth:`ViewSet.set_pose` never waits
+for a drawing: a pose given while its view is drawn is taken at the view's next frame
+(:meth:`ViewSet.pose` returns it meanwhile). Locks, outermost first: the frame lock, a
+view's own lock, the set's :attr:`ViewSet.lock` (held briefly, waiting for nothing).
+One lock for everything drew the views one after another: on 2 cores beside the
+``stitcher``, 4 still 1280x720 views with their JPEGs reached 16-22 frame sets/s, drawn
+at once 28-30 (``benchmarks/bench_view.py``, OpenCV 4.6; ``docs/roi.md``).
 
 Parameter form of a view (``roi_views`` of the node): ``NAME`` or
 ``NAME:AZIMUTH,ELEVATION,FOV_H`` in degrees, e.g. ``front:0,0,60``.
 """
+from contextlib import contextmanager
 import re
 import threading
-from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.view import (check_view_size, LevelledView, ViewMosaic,
@@ -62,6 +74,71 @@ def parse_view_entry(entry: str) -> Tuple[str, Optional[ViewPose]]:
         raise InputError(f'view {name!r}: {exc}') from None
 
 
+class FrameLock:
+    """
+    Many drawings of a frame set at once, or one change of it (a phase-fair RW lock).
+
+    :meth:`reading` is shared, :meth:`writing` exclusive. A waiting writer goes before any
+    reader that comes after it (a stream of drawings cannot hold a new frame set off), and
+    the readers that waited through a write go before the next writer (a stream of frame
+    sets cannot hold the drawings off). Not re-entrant: a thread holding either side must
+    not ask again.
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition(threading.Lock())
+        self._readers = 0
+        self._writing = False
+        self._writers_waiting = 0
+        self._readers_waiting = 0
+        self._owed = 0   # readers that waited through the last write, not yet in
+        self._writes = 0
+
+    @contextmanager
+    def reading(self) -> Iterator[None]:
+        """Hold the frame set still (shared with other readers)."""
+        with self._cond:
+            arrived = self._writes
+            self._readers_waiting += 1
+            try:
+                while self._writing or (self._writers_waiting and arrived == self._writes):
+                    self._cond.wait()
+            finally:
+                self._readers_waiting -= 1
+            if arrived != self._writes and self._owed:
+                self._owed -= 1
+                if not self._owed:
+                    self._cond.notify_all()
+            self._readers += 1
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._readers -= 1
+                if not self._readers:
+                    self._cond.notify_all()
+
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """Change the frame set (alone: after the readers inside and those owed a turn)."""
+        with self._cond:
+            self._writers_waiting += 1
+            try:
+                while self._writing or self._readers or self._owed:
+                    self._cond.wait()
+            finally:
+                self._writers_waiting -= 1
+            self._writing = True
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._writing = False
+                self._writes += 1
+                self._owed = self._readers_waiting
+                self._cond.notify_all()
+
+
 class ViewSet:
     """
     Named :class:`~.view.LevelledView` objects over one shared :class:`~.view.ViewMosaic`.
@@ -92,6 +169,11 @@ class ViewSet:
         self.attitude: Optional[Tuple[float, float]] = None
         self.stamp_s: Optional[float] = None
         self.lock = threading.RLock()
+        """The set's own state (views, poses waiting, shared frames): held briefly."""
+        self.frame_lock = FrameLock()
+        """The mosaic and the attitude: shared by drawings, exclusive for a new frame set."""
+        self._view_locks: Dict[str, threading.Lock] = {}
+        self._poses_waiting: Dict[str, ViewPose] = {}
 
     def names(self) -> List[str]:
         """Return the view names in the order they were added."""
@@ -118,6 +200,7 @@ class ViewSet:
             if self.attitude is not None:
                 view.set_attitude(*self.attitude)
             self.views[name] = view
+            self._view_locks[name] = threading.Lock()
             return view
 
     def remove(self, name: str) -> None:
@@ -125,14 +208,43 @@ class ViewSet:
         with self.lock:
             if self.views.pop(name, None) is None:
                 raise InputError(f'no view named {name!r}')
+            self._forget(name)
+
+    def _forget(self, name: str) -> None:
+        """Drop a removed view's lock and waiting pose (a drawing in progress finishes)."""
+        self._view_locks.pop(name, None)
+        self._poses_waiting.pop(name, None)
 
     def set_pose(self, name: str, pose: ViewPose) -> None:
-        """Point view ``name`` (the view keeps its last pose when this raises)."""
+        """
+        Point view ``name`` (the view keeps its last pose when this raises).
+
+        Never waits for a drawing: while the view is being drawn the pose waits for its
+        next frame (:meth:`pose` returns it meanwhile).
+        """
+        if not isinstance(pose, ViewPose):
+            raise InputError(f'expected a ViewPose, got {type(pose).__name__}')
         with self.lock:
             view = self.views.get(name)
             if view is None:
                 raise InputError(f'no view named {name!r}')
-            view.set_pose(pose)
+            lock = self._view_locks[name]
+            if lock.acquire(blocking=False):
+                try:
+                    view.set_pose(pose)
+                    self._poses_waiting.pop(name, None)
+                finally:
+                    lock.release()
+            else:
+                self._poses_waiting[name] = pose
+
+    def pose(self, name: str) -> ViewPose:
+        """Return the newest pose of view ``name`` (one waiting for its next frame, if any)."""
+        with self.lock:
+            view = self.views.get(name)
+            if view is None:
+                raise InputError(f'no view named {name!r}')
+            return self._poses_waiting.get(name, view.pose)
 
     def apply_entries(self, entries: Iterable[str]) -> Tuple[List[str], List[str]]:
         """
@@ -151,13 +263,14 @@ class ViewSet:
             removed = [n for n in self.views if n not in names]
             for name in removed:
                 del self.views[name]
+                self._forget(name)
             added = []
             for name, pose in parsed:
                 if name not in self.views:
                     self.add(name, pose)
                     added.append(name)
                 elif pose is not None:
-                    self.views[name].set_pose(pose)
+                    self.set_pose(name, pose)
             return added, removed
 
     def set_frame(self, images: Sequence[Optional[np.ndarray]], roll: float, pitch: float,
@@ -165,7 +278,7 @@ class ViewSet:
         """Copy one frame set (rig order; None blacks a camera out) and its attitude in."""
         if len(images) != len(self.rig):
             raise InputError(f'expected {len(self.rig)} images, got {len(images)}')
-        with self.lock:
+        with self.frame_lock.writing(), self.lock:
             for view in self.views.values():  # checked before anything changes
                 view.set_attitude(roll, pitch)
             for i, image in enumerate(images):
@@ -173,23 +286,53 @@ class ViewSet:
             self.attitude = (float(roll), float(pitch))
             self.stamp_s = stamp_s
 
+    @contextmanager
+    def drawing(self, name: str) -> Iterator[Tuple[LevelledView, np.ndarray]]:
+        """
+        Draw view ``name`` of the current frame set; yield ``(view, image)``.
+
+        Inside, the frame set and the view hold still (the view's pose and attitude are
+        those of the image); other views draw meanwhile. ``image`` is the view's own
+        buffer: it stays as it is until this view is drawn again (copy it to keep it).
+        InputError when there is no such view.
+        """
+        with self.lock:
+            if name not in self.views:
+                raise InputError(f'no view named {name!r}')
+        with self.frame_lock.reading():
+            with self.lock:
+                view = self.views.get(name)
+                lock = self._view_locks.get(name)
+            if view is None or lock is None:  # removed while a new frame set came in
+                raise InputError(f'no view named {name!r}')
+            with lock:
+                with self.lock:
+                    pose = self._poses_waiting.pop(name, None)
+                if pose is not None:
+                    view.set_pose(pose)
+                yield view, self._draw(view)
+
     def render(self, name: str) -> np.ndarray:
         """Return a copy of view ``name`` of the current frame set."""
-        with self.lock:
-            view = self.views.get(name)
-            if view is None:
-                raise InputError(f'no view named {name!r}')
-            return self.render_view(view).copy()
+        with self.drawing(name) as (_, image):
+            return image.copy()
 
     def render_all(self) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
         """Return ``{name: (image copy, K)}`` of every view for the current frame set."""
-        with self.lock:
-            return {name: (self.render_view(view).copy(), view.camera_matrix)
-                    for name, view in self.views.items()}
+        out = {}
+        for name in self.names():
+            try:
+                with self.drawing(name) as (view, image):
+                    out[name] = (image.copy(), view.camera_matrix)
+            except InputError:
+                if name in self.names():
+                    raise
+                continue   # removed meanwhile
+        return out
 
-    def render_view(self, view: LevelledView) -> np.ndarray:
+    def _draw(self, view: LevelledView) -> np.ndarray:
         """
-        Return ``view`` of the current frame set (its own buffer; hold :attr:`lock`).
+        Return ``view`` of the current frame set (its own buffer; in :meth:`drawing`).
 
         The views share each camera's image as the direct renderer reads it and its
         undistorted plane, each made once per frame set, and a view posed exactly as
@@ -197,15 +340,24 @@ class ViewSet:
         drawing it again (:attr:`shared_frames` counts).
         """
         key = (self.mosaic.version, view.pose, view.attitude, view.width, view.height)
-        if self._drawn_version != key[0]:
-            self._drawn.clear()
-            self._drawn_version = key[0]
-        twin = self._drawn.get(key)
-        if twin is not None and twin is not view and twin.last_frame_key == key and \
-                any(v is twin for v in self.views.values()):
-            self.shared_frames += 1
-            return view.copy_frame(twin, key)
+        with self.lock:
+            if self._drawn_version != key[0]:
+                self._drawn.clear()
+                self._drawn_version = key[0]
+            twin = self._drawn.get(key)
+            names = [n for n, v in self.views.items() if v is twin and v is not view]
+            twin_lock = self._view_locks.get(names[0]) if names else None
+        # the twin's frame unless its own drawing is under way (never wait for it)
+        if twin is not None and twin_lock is not None and twin_lock.acquire(blocking=False):
+            try:
+                if twin.last_frame_key == key:
+                    with self.lock:
+                        self.shared_frames += 1
+                    return view.copy_frame(twin, key)
+            finally:
+                twin_lock.release()
         image = view.render(self.mosaic.image, self.mosaic.version)
         view.last_frame_key = key
-        self._drawn[key] = view
+        with self.lock:
+            self._drawn[key] = view
         return image

@@ -31,6 +31,7 @@ of the image (the undistortion, at ``plane_scale`` times the camera's focal leng
 rendered ground truth.
 """
 import math
+import threading
 from typing import Any, cast, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
@@ -71,7 +72,9 @@ class CameraPlanes:
     ``projection`` is a :class:`~.rig_projection.RigProjection` over the mosaic layout
     (a view's builder); ``plane_scale`` sets each plane's focal length to that many times
     the camera's larger one. Planes are filled per frame set: :meth:`prepare` resamples
-    the rectangles asked for that are not done yet for that ``version`` of the mosaic.
+    the rectangles asked for that are not done yet for that ``version`` of the mosaic
+    (thread-safe: views drawing one ``version`` at once share the planes; what one
+    resamples lies outside what the others read).
     """
 
     def __init__(self, projection: Any, plane_scale: float = DEFAULT_PLANE_SCALE) -> None:
@@ -127,6 +130,7 @@ class CameraPlanes:
         self._staging: List[np.ndarray] = []
         self._done: List[Optional[Rect]] = [None] * len(rig)
         self._version: Any = object()
+        self._lock = threading.Lock()
 
     @staticmethod
     def _span(px: np.ndarray, py: np.ndarray, valid: np.ndarray) -> float:
@@ -140,8 +144,9 @@ class CameraPlanes:
 
     def holds(self, version: Any) -> bool:
         """Return True when some plane was resampled from the mosaic's ``version``."""
-        return version is not None and version == self._version and \
-            any(done is not None for done in self._done)
+        with self._lock:
+            return version is not None and version == self._version and \
+                any(done is not None for done in self._done)
 
     def prepare(self, mosaic: np.ndarray, needs: Dict[int, Rect], version: Any = None) -> None:
         """
@@ -150,6 +155,11 @@ class CameraPlanes:
         With ``version`` (any value that changes with the mosaic's content), rectangles
         done earlier for the same version are reused; None resamples every time.
         """
+        with self._lock:
+            self._prepare(mosaic, needs, version)
+
+    def _prepare(self, mosaic: np.ndarray, needs: Dict[int, Rect], version: Any) -> None:
+        """:meth:`prepare`, holding the lock."""
         cv2 = self._cv2
         colour = mosaic.ndim == 3 and mosaic.shape[2] == 3
         channels = (4,) if colour else mosaic.shape[2:]

@@ -121,15 +121,21 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     infos.clear()
     assert steered(_feed_until(infos, 1, feed)[-1])
 
-    # add a view and remove 'front' at run time; a bad name is refused, nothing applied
+    # add two views and remove 'front' at run time; a bad name is refused, nothing applied
     bad = graph.set_parameters('stitcher', {'roi_views': ['front', 'no/slash']})
     assert not bad[0].successful and 'topic name' in bad[0].reason
-    result = graph.set_parameters('stitcher', {'roi_views': ['side:40,0,60']})
+    result = graph.set_parameters('stitcher', {'roi_views': ['side:40,0,60',
+                                                             'left:-40,0,60']})
     assert result[0].successful, result[0].reason
     side = graph.collect(Image, 'roi/side/image', QOS)
+    left = graph.collect(Image, 'roi/left/image', QOS)
     got = _feed_until(side, 4, feed)
     assert len(got) >= 4, proc.output()
     covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(40, 0, 60))
+    assert covered > 0.3 and psnr > 30.0
+    got = _feed_until(left, 4, feed)   # both drawn from each frame set, at once
+    assert len(got) >= 4, proc.output()
+    covered, psnr = _psnr_to_truth(got[-1], scene, ViewPose.from_degrees(-40, 0, 60))
     assert covered > 0.3 and psnr > 30.0
     images.clear()
     for _ in range(10):

@@ -1,6 +1,7 @@
 """Named views over one mosaic: names, caps, all-or-nothing changes, threads."""
 import math
 import threading
+import time
 
 from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
@@ -127,3 +128,182 @@ def test_views_posed_alike_share_a_frame_and_planes_serve_every_view():
     shared = views.shared_frames
     out = views.render_all()
     assert views.shared_frames == shared and not np.array_equal(out['a'][0], out['b'][0])
+
+
+def _run_in_thread(target, *args):
+    """Start ``target(*args)`` in a daemon thread; return (thread, result list)."""
+    result = []
+    thread = threading.Thread(target=lambda: result.append(target(*args)), daemon=True)
+    thread.start()
+    return thread, result
+
+
+def test_views_draw_at_once_and_a_new_frame_set_waits_for_the_drawings():
+    """
+    While a view is drawn, another draws, a pose is taken and a new frame set waits.
+
+    The frame being drawn is never written over. (One lock for the whole set drew one
+    view after the other: the second drawing, the pose and the frame set all waited for
+    the first.)
+    """
+    from accelcal_ros.panorama.view import ViewPose
+
+    rig = _rig()
+    scene = render.make_scene(900, 450, seed=1)
+    first = render.render_camera_views(scene, rig, 0.05, 0.1)
+    views = ViewSet(rig, width=160, height=120)
+    views.apply_entries(['a:0,0,40', 'b:30,0,40'])
+    views.set_frame(first, 0.05, 0.1, 1.0)
+    reference = views.render('a')
+    inside, leave = threading.Event(), threading.Event()
+    seen = []
+
+    def hold_a():
+        with views.drawing('a') as (view, image):
+            seen.append((view.pose.degrees(), views.stamp_s, image.copy()))
+            inside.set()
+            leave.wait(60.0)
+            seen.append(image.copy())
+
+    holder, _ = _run_in_thread(hold_a)
+    try:
+        assert inside.wait(60.0)
+        other, drawn = _run_in_thread(views.render, 'b')
+        other.join(60.0)
+        assert not other.is_alive() and drawn[0].max() > 0   # b drew meanwhile
+        steer, _ = _run_in_thread(views.set_pose, 'a', ViewPose.from_degrees(5, 0, 40))
+        steer.join(60.0)
+        assert not steer.is_alive()   # the pose did not wait for a's drawing
+        assert views.pose('a').degrees() == pytest.approx((5, 0, 40))
+        assert views.views['a'].pose.degrees() == pytest.approx((0, 0, 40))  # drawn as was
+        second = [255 - image for image in first]
+        writer, _ = _run_in_thread(views.set_frame, second, 0.05, 0.1, 2.0)
+        writer.join(0.3)
+        assert writer.is_alive() and views.stamp_s == 1.0   # waits for a's drawing
+    finally:
+        leave.set()
+        holder.join(60.0)
+    writer.join(60.0)
+    assert not writer.is_alive() and views.stamp_s == 2.0
+    assert seen[0][:2] == (pytest.approx((0, 0, 40)), 1.0)
+    assert np.array_equal(seen[1], seen[0][2])   # the frame drawn was not written over
+    assert np.abs(seen[1].astype(int) - reference).mean() < 1.0   # the first frame set's
+    with views.drawing('a') as (view, image):
+        assert view.pose.degrees() == pytest.approx((5, 0, 40))  # taken at the next frame
+    with pytest.raises(InputError, match='no view'):
+        with views.drawing('zzz'):
+            pass
+
+
+def test_views_drawn_from_many_threads_are_never_torn():
+    """
+    Views drawn from three threads are each one frame set's, at the pose they report.
+
+    The threads draw over and over while frame sets alternate between an image and its
+    negative and the views are steered (16x16 blocks against that frame set drawn alone).
+    """
+    from accelcal_ros.panorama.view import LevelledView, ViewPose
+
+    rig = _rig()
+    scene = render.make_scene(900, 450, seed=1)
+    frames = render.render_camera_views(scene, rig, 0.05, 0.1)
+    sets = {0.0: frames, 1.0: [255 - image for image in frames]}
+    poses = [ViewPose.from_degrees(az, 0, 40) for az in (-30, -20, 0, 10, 30, 40)]
+    views = ViewSet(rig, width=160, height=120)
+    views.apply_entries([f'v{i}:{-30 + 30 * i},0,40' for i in range(3)])
+    views.set_frame(sets[0.0], 0.05, 0.1, 0.0)
+    stop = threading.Event()
+    drawn, errors = [], []
+
+    def draw(name):
+        try:
+            for _ in range(40):
+                with views.drawing(name) as (view, image):
+                    drawn.append((views.stamp_s, view.pose, image.copy()))
+        except Exception as exc:  # noqa: B902 - reported below
+            errors.append(exc)
+
+    def churn():
+        k = 0
+        while not stop.is_set():
+            k += 1
+            views.set_frame(sets[float(k % 2)], 0.05, 0.1, float(k % 2))
+            views.set_pose(f'v{k % 3}', poses[k % len(poses)])
+
+    threads = [threading.Thread(target=draw, args=(f'v{i}',), daemon=True) for i in range(3)]
+    changer = threading.Thread(target=churn, daemon=True)
+    changer.start()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120.0)
+    stop.set()
+    changer.join(60.0)
+    assert not errors and len(drawn) == 120
+    assert len({stamp for stamp, _, _ in drawn}) == 2   # both frame sets were drawn
+    mosaic = views.mosaic
+    truth = {}
+    for stamp, pose, image in drawn:
+        key = (stamp, pose.degrees())
+        if key not in truth:
+            alone = LevelledView(rig, mosaic.layout, 160, 120, pose)
+            alone.set_attitude(0.05, 0.1)
+            for i, camera_image in enumerate(sets[stamp]):
+                mosaic.set_image(i, camera_image)
+            truth[key] = alone.render(mosaic.image).astype(np.float32)
+        diff = np.abs(image.astype(np.float32) - truth[key]).mean(axis=2)
+        blocks = diff[:112].reshape(7, 16, 10, 16).mean(axis=(1, 3))
+        assert blocks.max() < 4.0, (stamp, pose.degrees(), blocks.max())
+
+
+@pytest.mark.parametrize('busy', ['writer', 'readers'])
+def test_frame_lock_starves_neither_side(busy):
+    """
+    Against a side that asks again at once, the other side's 200 turns all come.
+
+    A writer-first lock kept two readers out for minutes against a looping writer.
+    """
+    from accelcal_ros.panorama.view_set import FrameLock
+
+    lock = FrameLock()
+    stop = threading.Event()
+    inside = {'readers': 0, 'writing': 0, 'overlaps': 0}
+    guard = threading.Lock()
+
+    def read(turns):
+        k = 0
+        while (k < turns) if turns else not stop.is_set():
+            with lock.reading():
+                with guard:
+                    inside['readers'] += 1
+                    inside['overlaps'] += inside['writing']
+                time.sleep(0.001)   # a drawing takes a while
+                with guard:
+                    inside['readers'] -= 1
+            k += 1
+
+    def write(turns):
+        k = 0
+        while (k < turns) if turns else not stop.is_set():
+            with lock.writing():
+                with guard:
+                    inside['overlaps'] += inside['readers'] + inside['writing']
+                    inside['writing'] += 1
+                time.sleep(0.001)   # so does copying a frame set in
+                with guard:
+                    inside['writing'] -= 1
+            k += 1
+
+    hot = [threading.Thread(target=write, args=(0,), daemon=True)] if busy == 'writer' else \
+        [threading.Thread(target=read, args=(0,), daemon=True) for _ in range(2)]
+    turns = [threading.Thread(target=read, args=(200,), daemon=True) for _ in range(2)] \
+        if busy == 'writer' else [threading.Thread(target=write, args=(200,), daemon=True)]
+    for t in hot + turns:
+        t.start()
+    for t in turns:
+        t.join(60.0)
+    done = not any(t.is_alive() for t in turns)
+    stop.set()
+    for t in hot:
+        t.join(60.0)
+    assert done and inside['overlaps'] == 0
