@@ -345,7 +345,8 @@ class ViewSet:
                 self._drawn.clear()
                 self._drawn_version = key[0]
             twin = self._drawn.get(key)
-            names = [n for n, v in self.views.items() if v is twin and v is not view]
+            names = [n for n, v in self.views.items() if v is twin] \
+                if twin is not None and twin is not view else []
             twin_lock = self._view_locks.get(names[0]) if names else None
         # the twin's frame unless its own drawing is under way (never wait for it)
         if twin is not None and twin_lock is not None and twin_lock.acquire(blocking=False):

@@ -62,14 +62,20 @@ def test_cap_and_all_or_nothing_changes():
         views.remove('a')
 
 
-def test_render_all_from_one_frame_and_concurrent_steering():
-    """Every view renders from the one mosaic while another thread steers them."""
+def _two_views(stamp_s):
+    """Return (frames, views): views a (0 deg) and b (30 deg) of one frame set at ``stamp_s``."""
     rig = _rig()
     scene = render.make_scene(900, 450, seed=1)
     frames = render.render_camera_views(scene, rig, 0.05, 0.1)
     views = ViewSet(rig, width=160, height=120)
     views.apply_entries(['a:0,0,40', 'b:30,0,40'])
-    views.set_frame(frames, 0.05, 0.1, 12.5)
+    views.set_frame(frames, 0.05, 0.1, stamp_s)
+    return frames, views
+
+
+def test_render_all_from_one_frame_and_concurrent_steering():
+    """Every view renders from the one mosaic while another thread steers them."""
+    frames, views = _two_views(12.5)
     stop = threading.Event()
     errors = []
 
@@ -148,12 +154,7 @@ def test_views_draw_at_once_and_a_new_frame_set_waits_for_the_drawings():
     """
     from accelcal_ros.panorama.view import ViewPose
 
-    rig = _rig()
-    scene = render.make_scene(900, 450, seed=1)
-    first = render.render_camera_views(scene, rig, 0.05, 0.1)
-    views = ViewSet(rig, width=160, height=120)
-    views.apply_entries(['a:0,0,40', 'b:30,0,40'])
-    views.set_frame(first, 0.05, 0.1, 1.0)
+    first, views = _two_views(1.0)
     reference = views.render('a')
     inside, leave = threading.Event(), threading.Event()
     seen = []
