@@ -36,7 +36,7 @@ import threading
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.panorama.roi_params import ROI_PARAMS
 from accelcal_ros.panorama.view import ViewPose
-from accelcal_ros.panorama.view_set import ViewSet
+from accelcal_ros.panorama.view_set import NoSuchView, ViewSet
 from accelcal_ros.rosutil.images import image_cdr
 from accelcal_ros.rosutil.params import ParameterSet
 from geometry_msgs.msg import Vector3Stamped
@@ -201,10 +201,8 @@ class RoiViews:
                 k = view.camera_matrix
                 frame_id = f'{self.frame_id}_roi_{name}'
                 data = image_cdr(image, self.encoding, sec, nanosec, frame_id)
-        except InputError:
-            if name not in self.views.names():  # removed meanwhile
-                return 0
-            raise
+        except NoSuchView:  # removed meanwhile
+            return 0
         io[0].publish(data)
         io[1].publish(self._camera_info(k, image.shape, sec, nanosec, frame_id))
         return 1

@@ -41,7 +41,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 from accelcal_ros.errors import InputError
 from accelcal_ros.jpeg import encode_jpeg
 from accelcal_ros.panorama.view import ViewPose
-from accelcal_ros.panorama.view_set import ViewSet
+from accelcal_ros.panorama.view_set import NoSuchView, ViewSet
 import numpy as np
 
 DEFAULT_POSE_DEG = (0.0, 0.0, 60.0)
@@ -258,7 +258,7 @@ class ViewServer:
                 pass
             try:
                 self.views.remove(name)
-            except InputError:
+            except NoSuchView:
                 pass
         return ws
 
@@ -275,7 +275,7 @@ class ViewServer:
         if {'az', 'el', 'fov'} & set(data):
             try:
                 az, el, fov = self.views.pose(name).degrees()
-            except InputError:  # the view was removed meanwhile
+            except NoSuchView:  # the view was removed meanwhile
                 return
             try:
                 pose = ViewPose.from_degrees(data.get('az', az), data.get('el', el),
@@ -326,10 +326,8 @@ class ViewServer:
 
             try:
                 data, info = await loop.run_in_executor(None, render)
-            except InputError:
-                if name not in self.views.names():  # the view was removed meanwhile
-                    return
-                raise
+            except NoSuchView:  # the view was removed meanwhile
+                return
             state['acked'] = False
             state['sent'] += 1
             info['sent'] = state['sent']

@@ -43,6 +43,14 @@ DEFAULT_MAX_VIEWS = 8
 _NAME = re.compile(r'[A-Za-z][A-Za-z0-9]*(_[A-Za-z0-9]+)*\Z')
 
 
+class NoSuchView(InputError):
+    """There is no view of that name (never was, or removed, perhaps while drawing)."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(f'no view named {name!r}')
+        self.name = name
+
+
 def check_view_name(name: Any) -> str:
     """Return ``name`` if it is a valid ROS name token, else raise :class:`InputError`."""
     if not isinstance(name, str) or not name:
@@ -204,10 +212,10 @@ class ViewSet:
             return view
 
     def remove(self, name: str) -> None:
-        """Remove a view (InputError if there is none of that name)."""
+        """Remove a view (:class:`NoSuchView` if there is none of that name)."""
         with self.lock:
             if self.views.pop(name, None) is None:
-                raise InputError(f'no view named {name!r}')
+                raise NoSuchView(name)
             self._forget(name)
 
     def _forget(self, name: str) -> None:
@@ -227,7 +235,7 @@ class ViewSet:
         with self.lock:
             view = self.views.get(name)
             if view is None:
-                raise InputError(f'no view named {name!r}')
+                raise NoSuchView(name)
             lock = self._view_locks[name]
             if lock.acquire(blocking=False):
                 try:
@@ -243,7 +251,7 @@ class ViewSet:
         with self.lock:
             view = self.views.get(name)
             if view is None:
-                raise InputError(f'no view named {name!r}')
+                raise NoSuchView(name)
             return self._poses_waiting.get(name, view.pose)
 
     def apply_entries(self, entries: Iterable[str]) -> Tuple[List[str], List[str]]:
@@ -294,17 +302,17 @@ class ViewSet:
         Inside, the frame set and the view hold still (the view's pose and attitude are
         those of the image); other views draw meanwhile. ``image`` is the view's own
         buffer: it stays as it is until this view is drawn again (copy it to keep it).
-        InputError when there is no such view.
+        :class:`NoSuchView` when there is no such view (or it is removed meanwhile).
         """
         with self.lock:
             if name not in self.views:
-                raise InputError(f'no view named {name!r}')
+                raise NoSuchView(name)
         with self.frame_lock.reading():
             with self.lock:
                 view = self.views.get(name)
                 lock = self._view_locks.get(name)
             if view is None or lock is None:  # removed while a new frame set came in
-                raise InputError(f'no view named {name!r}')
+                raise NoSuchView(name)
             with lock:
                 with self.lock:
                     pose = self._poses_waiting.pop(name, None)
@@ -324,9 +332,7 @@ class ViewSet:
             try:
                 with self.drawing(name) as (view, image):
                     out[name] = (image.copy(), view.camera_matrix)
-            except InputError:
-                if name in self.names():
-                    raise
+            except NoSuchView:
                 continue   # removed meanwhile
         return out
 

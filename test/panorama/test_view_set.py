@@ -7,7 +7,8 @@ from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.roi_params import ROI_PARAMS
-from accelcal_ros.panorama.view_set import check_view_name, parse_view_entry, ViewSet
+from accelcal_ros.panorama.view_set import (check_view_name, NoSuchView, parse_view_entry,
+                                            ViewSet)
 import numpy as np
 import pytest
 
@@ -194,6 +195,56 @@ def test_views_draw_at_once_and_a_new_frame_set_waits_for_the_drawings():
     with pytest.raises(InputError, match='no view'):
         with views.drawing('zzz'):
             pass
+
+
+def test_a_view_removed_while_its_drawing_waits_is_no_such_view():
+    """
+    A drawing that waited behind a new frame set for a view removed meanwhile: NoSuchView.
+
+    Every call naming a missing view raises :class:`NoSuchView` (an InputError), so
+    the node and the server tell "removed meanwhile" from a real error in one place.
+    """
+    from accelcal_ros.panorama.view import ViewPose
+
+    frames, views = _two_views(1.0)
+    for call in (lambda: views.remove('zzz'), lambda: views.pose('zzz'),
+                 lambda: views.set_pose('zzz', ViewPose.from_degrees(0, 0, 40)),
+                 lambda: views.render('zzz')):
+        with pytest.raises(NoSuchView, match="no view named 'zzz'") as caught:
+            call()
+        assert isinstance(caught.value, InputError) and caught.value.name == 'zzz'
+    inside, leave = threading.Event(), threading.Event()
+
+    def hold_a():
+        with views.drawing('a'):
+            inside.set()
+            leave.wait(60.0)
+
+    holder, _ = _run_in_thread(hold_a)
+    try:
+        assert inside.wait(60.0)
+        writer, _ = _run_in_thread(views.set_frame, frames, 0.05, 0.1, 2.0)
+        writer.join(0.2)
+        assert writer.is_alive()   # waits for a's drawing
+
+        def draw_b():
+            try:
+                views.render('b')
+            except NoSuchView as exc:
+                return exc
+            return None
+
+        waiting, outcome = _run_in_thread(draw_b)
+        waiting.join(0.2)
+        assert waiting.is_alive()  # waits behind the new frame set
+        views.remove('b')
+    finally:
+        leave.set()
+        holder.join(60.0)
+    writer.join(60.0)
+    waiting.join(60.0)
+    assert not waiting.is_alive() and isinstance(outcome[0], NoSuchView)
+    assert views.names() == ['a'] and set(views.render_all()) == {'a'}
 
 
 def test_views_drawn_from_many_threads_are_never_torn():
