@@ -29,23 +29,22 @@ by eq. 6 and the pixel found through that camera's lens (``K_i``, ``D_i``), all 
 offsets are fixed tables and only that 3x3 product moves with the attitude, the direction
 and the zoom.
 
-A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): the first
-frame of a frame set (live video: every frame) straight from the camera images, one
+A frame is drawn one of three ways (``renderer``). ``'grid'`` (the default): a frame
+set's first frame (live video: every frame) straight from the camera images, one
 ``cv2.remap`` through a map interpolated from a coarse exact grid (:mod:`.view_grid`),
-a frame set drawn again -- moving over it, or another view posed alike -- as ``'warp'``.
-``'warp'``: up to the lens, a view pixel's ray in camera ``i`` is a homography, so each
-camera's part of the view -- a convex region bounded by eq. 6's great circles, straight
-lines in a rectilinear view -- is one ``cv2.warpPerspective`` of that camera's
-undistorted image plane, resampled from the mosaic through a fixed map built from the
-same lens code, once per frame set for all the views sharing it (:mod:`.view_warp`).
-``'map'``: the lookup (view pixel -> mosaic pixel) built by the panorama's fast builder
-(:class:`~.lookup.LookupBuilder`, error within ``tolerance_px`` camera pixels, measured
-at every pixel by ``test/panorama/test_view.py``), then one 16-bit fixed-point
-``cv2.remap`` per frame. A ``'grid'`` or ``'warp'`` view still for
-:data:`STILL_FRAMES_BEFORE_MAP` frames builds its lookup and remaps from then on (the
-cheapest frame). The view follows the attitude and its pose only when its rotation in
-the cameras moves by more than ``rebuild_threshold_deg`` or the zoom changes. Pixels
-no camera sees are black; :meth:`LevelledView.covered_fraction` says how many are seen.
+a frame set drawn again (moving over it, or another view posed alike) as ``'warp'``:
+up to the lens, a view pixel's ray in camera ``i`` is a homography, so each camera's
+part of the view (a convex region bounded by eq. 6's great circles, straight lines in a
+rectilinear view) is one ``cv2.warpPerspective`` of its undistorted image plane, made
+from the mosaic once per frame set for all the views sharing it (:mod:`.view_warp`).
+``'map'``: the lookup (view pixel -> mosaic pixel) by the panorama's fast builder
+(:class:`~.lookup.LookupBuilder`, within ``tolerance_px`` camera pixels at every pixel:
+``test/panorama/test_view.py``), one fixed-point ``cv2.remap`` per frame. A ``'grid'``
+or ``'warp'`` view still for :data:`STILL_FRAMES_BEFORE_MAP` frames remaps its lookup
+from then on (the cheapest frame). The view follows the attitude and its pose when its
+rotation in the cameras moves by more than ``rebuild_threshold_deg`` or the zoom
+changes. Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` says
+how many are seen.
 """
 from dataclasses import dataclass
 import math
@@ -576,25 +575,26 @@ class LevelledView:
 
     def covered_fraction(self) -> float:
         """
-        Fraction of the view's pixels some camera sees (computed once per pose).
+        Fraction of the view's pixels some camera sees (once per pose).
 
-        A pixel counts when its point lies within the chosen camera's frame, to half a
-        pixel beyond its outermost pixel centres (at least half its bilinear weight on
-        pixels); evaluated exactly at :data:`COVERAGE_SAMPLES` pixels along the longer
-        side (and as many rows or columns at that spacing on the other).
+        A pixel counts when its point lies within the chosen camera's frame to half a pixel
+        beyond its outermost pixel centres; counted at :data:`COVERAGE_SAMPLES` pixels along
+        the longer side, off the pose's ``'grid'`` map if any (:meth:`.GridMaps.seen`).
         """
         self.update()
         if self._covered is None:
-            assert self.attitude is not None
             step = max(1.0, max(self.width, self.height) / COVERAGE_SAMPLES)
-            u = np.arange(step / 2 - 0.5, self.width - 0.5, step)
-            v = np.arange(step / 2 - 0.5, self.height - 0.5, step)
-            g = self.builder.geometry
-            rays = g.rays(u[None, :], v[:, None]).reshape(-1, 3)
-            label, x, y, side = self.builder.evaluate(
-                rays, self.builder.camera_rotations(*self.attitude))
-            size = self.builder._sizes[label]
-            seen = ((side & 16) == 0) & (x >= -0.5) & (x <= size[:, 0] - 0.5) & \
-                (y >= -0.5) & (y <= size[:, 1] - 0.5)
+            u, v = (np.unique(np.clip(np.round(np.arange(step / 2 - 0.5, n - 0.5, step)), 0,
+                                      n - 1)).astype(np.intp) for n in (self.width, self.height))
+            if self._grid is not None:
+                seen = self._grid.seen(v, u)
+            else:
+                rays = self.builder.geometry.rays(u[None, :], v[:, None]).reshape(-1, 3)
+                label, x, y, side = self.builder.evaluate(
+                    rays, self.builder.camera_rotations(*cast(Tuple[float, float],
+                                                              self.attitude)))
+                size = self.builder._sizes[label]
+                seen = ((side & 16) == 0) & (x >= -0.5) & (x <= size[:, 0] - 0.5) & \
+                    (y >= -0.5) & (y <= size[:, 1] - 0.5)
             self._covered = float(seen.mean())
         return self._covered
