@@ -3,6 +3,7 @@ import asyncio
 import json
 import math
 import threading
+import time
 
 from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
@@ -190,6 +191,40 @@ def test_disconnects_mid_frame_leak_nothing_over_200_cycles(scene):
         assert grown_kb < 20_000, marks  # a view and its lookup: ~1.5 MB; 200 leaked: 300 MB
     finally:
         server.stop()
+
+
+class _SlowCopy(ViewSet):
+    """A view set whose frame sets take 2.4 playback periods (at 20 fps) to copy in."""
+
+    def set_frame(self, *args, **kwargs):
+        time.sleep(0.12)
+        super().set_frame(*args, **kwargs)
+
+
+def test_playback_keeps_the_clock_and_skips_what_it_cannot_show(scene):
+    """
+    Frame sets shown or skipped keep pace with the clock at the playback rate.
+
+    Frame sets slower to copy in than the period: the playback skips frame sets, as a
+    live source drops them, instead of playing the recording slower (it slept a period
+    after each one: 5.9 frame sets/s played of 20 here, none skipped).
+    """
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    sets = [([np.full((240, 320, 3), 40 * k, np.uint8)] * 3, ROLL, PITCH, 0.1 * k)
+            for k in range(3)]
+    server = ViewServer(_SlowCopy(rig, max_views=2, width=64, height=48), sets, fps=20.0)
+    server.start('127.0.0.1', 0)   # returns once serving: the playback began before
+    start = time.monotonic()
+    try:
+        time.sleep(1.5)
+        played = server.frame_number + server.skipped_frames
+        elapsed = time.monotonic() - start
+    finally:
+        server.stop()
+    assert server.skipped_frames > 0
+    # only the frame set being copied in (0.12 s and whatever the machine adds) is not
+    # counted yet
+    assert played >= 20.0 * elapsed - 6, (played, elapsed, server.frame_number)
 
 
 def test_token_is_required_on_every_request(scene):
