@@ -224,9 +224,10 @@ class ViewServer:
         A late frame set is shown at once; one later than a whole period is skipped
         (:attr:`skipped_frames`), as a live source drops them.
 
-        Frame sets are copied in by a thread of their own: behind the tabs' drawings in
-        the render pool they came late, and a still tab (drawn once per frame set) was drawn
-        slower than the playback rate (18 frames/s at 25 with 4 moving tabs beside it).
+        Frame sets are copied in by a thread of their own. The playback used to sleep a
+        period after each copy, queued behind the tabs' drawings in the render pool: at
+        25 fps with 4 tabs and the stitcher beside it played 15-17 frame sets a second,
+        23-24 now (``benchmarks/bench_serve.py --stitcher``, OpenCV 4.6, 2 cores).
         """
         from concurrent.futures import ThreadPoolExecutor
 
@@ -258,7 +259,11 @@ class ViewServer:
     async def _socket(self, request: Any) -> Any:
         from aiohttp import web, WSMsgType
 
-        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=4096)
+        # no permessage-deflate (Chromium offers it; aiohttp accepts by default): a JPEG
+        # frame deflates by 18 % (the scene) to 0.1 % (noise) for 1.4 to 22 ms of CPU
+        # each, and a compressed send cut short by a closing tab left aiohttp's
+        # "Task exception was never retrieved" traceback on the server's stderr
+        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=4096, compress=False)
         await ws.prepare(request)
         self._next_id += 1
         name = f'tab{self._next_id}'

@@ -227,6 +227,49 @@ def test_playback_keeps_the_clock_and_skips_what_it_cannot_show(scene):
     assert played >= 20.0 * elapsed - 6, (played, elapsed, server.frame_number)
 
 
+def test_no_deflate_of_jpeg_frames_and_no_traceback_when_a_tab_closes(scene, caplog):
+    """
+    A client offering permessage-deflate (as Chromium does) gets frames uncompressed.
+
+    With deflate, tabs closing while a frame was sent left aiohttp's "Task exception
+    was never retrieved" (a traceback) on the server's log.
+    """
+    import logging
+
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    sets = [(render.render_camera_views(scene, rig, ROLL + 0.01 * k, PITCH), ROLL, PITCH, 0.1 * k)
+            for k in range(2)]
+    # frames of some 40 KB, which aiohttp deflates in a task of its own
+    server = ViewServer(ViewSet(rig, max_views=4, width=1280, height=720), sets, fps=20.0)
+    server.start('127.0.0.1', 0)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            ws = await session.ws_connect(server.url + 'ws', compress=15)
+            info, image = await _frame(ws)
+            assert image is not None and ws.compress == 0   # the offer was declined
+            await ws.close()
+            for k in range(40):   # closed with a frame on its way
+                ws = await session.ws_connect(server.url + 'ws', compress=15)
+                await ws.receive()   # the JSON header: the JPEG follows
+                await ws.close() if k % 2 else ws._response.connection.transport.abort()
+            for _ in range(100):
+                if not server.views.names():
+                    break
+                await asyncio.sleep(0.05)
+
+    with caplog.at_level(logging.ERROR):
+        try:
+            asyncio.run(run())
+        finally:
+            server.stop()
+    import gc
+
+    gc.collect()
+    assert server.views.names() == []
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR], caplog.text
+
+
 def test_token_is_required_on_every_request(scene):
     """With a token: 401 without it or with a wrong one; the page and socket work with it."""
     server = _server(scene, token='s3cret')
