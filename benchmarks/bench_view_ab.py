@@ -7,9 +7,12 @@ the 3-channel mosaic with a fixed-point map) and the two rows "view moving, new 
 set" and "attitude moving, new frame set" (the same steps as ``bench_view.py``) run with
 the other file's :class:`GridMaps` and with the installed one, alternating frame by frame
 (the order rotated every frame), one OpenCV thread, CPU time of this thread; medians and
-ratios to the floor. The other file is, e.g., ``git show main~5:accelcal_ros/panorama/
-view_grid.py > /tmp/old_view_grid.py``.
-Run: ``python benchmarks/bench_view_ab.py OTHER_VIEW_GRID.py [--frames 300]``.
+ratios to the floor, and the 90th percentile. ``--clock process`` counts the CPU time of
+every thread of the process (OpenBLAS's threads, for one, spin on the other core: not
+this thread's CPU time), ``--clock wall`` the wall time (what a frame takes to come,
+waits on other threads included). The other
+file is, e.g., ``git show main~5:accelcal_ros/panorama/view_grid.py > /tmp/old_view_grid.py``.
+Run: ``python benchmarks/bench_view_ab.py OTHER_VIEW_GRID.py [--frames 300] [--clock wall]``.
 """
 import argparse
 import math
@@ -32,6 +35,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('other', help='another view_grid.py (the "before")')
     parser.add_argument('--frames', type=int, default=300, help='frames per step (300)')
+    parser.add_argument('--clock', choices=('cpu', 'process', 'wall'), default='cpu',
+                        help="cpu: this thread's CPU time (default); process: all threads'; "
+                        'wall: wall time')
     args = parser.parse_args()
     other = types.ModuleType('other_view_grid')
     with open(args.other, encoding='utf-8') as f:
@@ -78,19 +84,23 @@ def main():
     }
     names = list(steps)
     times = {name: [] for name in names}
+    clock = {'cpu': time.thread_time, 'process': time.process_time,
+             'wall': time.perf_counter}[args.clock]
     for k in range(args.frames + 5):
         for name in names[k % len(names):] + names[:k % len(names)]:
-            start = time.thread_time()
+            start = clock()
             steps[name](k)
             if k >= 5:   # warm-up
-                times[name].append(time.thread_time() - start)
+                times[name].append(clock() - start)
     view_module.GridMaps = this_grid.GridMaps
     floor = statistics.median(times['floor'])
     print(f'cv2 {cv2.__version__}, load {os.getloadavg()[0]:.1f}, {args.frames} frames: '
-          f'floor {1e3 * floor:.2f} ms CPU')
+          f'floor {1e3 * floor:.2f} ms {args.clock}')
     for name in names[1:]:
         ms = statistics.median(times[name])
-        print(f'  {name:16} {1e3 * ms:6.2f} ms  x floor {ms / floor:.2f}')
+        p90 = statistics.quantiles(times[name], n=10)[-1]
+        print(f'  {name:16} {1e3 * ms:6.2f} ms  x floor {ms / floor:.2f}  '
+              f'(90th percentile {1e3 * p90:6.2f} ms, x floor {p90 / floor:.2f})')
 
 
 if __name__ == '__main__':

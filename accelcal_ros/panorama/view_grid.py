@@ -36,7 +36,7 @@ set: the 4-channel camera images; per frame: the remap.
 from functools import lru_cache
 import math
 import threading
-from typing import Any, cast, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 from accelcal_ros.panorama.mosaic import OUTSIDE
 from accelcal_ros.panorama.view_warp import grow, Rect, WarpPlan
@@ -135,8 +135,8 @@ class GridBuffers:
 
     :attr:`maps`: the resized node grid (x and y planes); :meth:`scratch`: the seam cells'
     interpolation; :meth:`tables`: index tables of the node grid. A new array per pose
-    cost page faults: ``cv2.gemm`` allocating its 0.5 MB output took 6-11 ms in one call
-    of six on a busy 2-core machine (median 0.2 ms).
+    cost page faults (a 0.5 MB output allocated per pose took 6-11 ms in one call of six
+    on a busy 2-core machine, median 0.2 ms).
     """
 
     def __init__(self) -> None:
@@ -445,12 +445,12 @@ class GridMaps:
         ``values`` ``(2, cells, s, s)`` are those of cells ``(b, a)``; cells ``(eb, ea)``
         (no region touches them) read ``OUTSIDE``. For each (cell, camera) pair the
         bilinear interpolation of the camera's corner nodes with the resize's weights
-        (one ``cv2.gemm``: pairs x 4 corners times 4 x pixels), kept where the camera's
-        region holds the pixel; the regions are disjoint, so each pixel takes the pair
-        that holds it, ``OUTSIDE`` where none does.
+        (one product, pairs x 4 corners times 4 x pixels, by ``np.einsum`` in this
+        thread: ``cv2.gemm`` on OpenCV 5 and ``np.matmul`` hand it to OpenBLAS's threads,
+        whose wait took 3-18 ms a call on a loaded 2-core machine against 0.2-0.45 ms
+        here), kept where the camera's region holds the pixel; the regions are disjoint,
+        so each pixel takes the pair that holds it, ``OUTSIDE`` where none does.
         """
-        import cv2
-
         s = self.step
         cn, nyc, nxc = hit.shape
         pk, pc = np.nonzero(hit[:, fb, fa].T)  # (cell, camera) pairs, by cell
@@ -471,8 +471,8 @@ class GridMaps:
         at = np.empty((2, pk.size, 4), np.float32)  # x/y, pair, corner
         for plane, values in zip(at, self._values):
             plane[...] = values.reshape(-1)[corners]
-        inner = cv2.gemm(at.reshape(-1, 4), _weights(s), 1.0, cast(Any, None), 0.0,
-                         dst=self.buffers.scratch(2 * pk.size, s * s)).reshape(2, pk.size, s * s)
+        inner = np.einsum('pk,kq->pq', at.reshape(-1, 4), _weights(s),
+                          out=self.buffers.scratch(2 * pk.size, s * s)).reshape(2, pk.size, s * s)
         span = np.arange(s)
         exact = np.flatnonzero(self._exact[pc, b, a]) if self.exact_cells else ()
         if len(exact):  # the lens at every pixel of these pairs' cells
