@@ -194,3 +194,38 @@ def test_evaluate_takes_a_camera_per_ray():
     _, px, _, side = view.builder._evaluate_soa(rays, rotations[2:3], only=np.zeros(500, int))
     _, qx, _, qside = view.builder._evaluate_soa(rays, rotations[2:3])
     assert (side == qside).all() and (px == qx)[(side & 16) == 0].all()
+
+
+def test_a_moving_view_hands_no_product_to_a_threaded_blas(monkeypatch):
+    """
+    The seam cells' product stays in the drawing thread: no ``cv2.gemm`` in a moving frame.
+
+    The seam cells' product by ``cv2.gemm`` went to the OpenCV 5 wheel's threaded
+    OpenBLAS, whose second thread then spun on the other core after every call: the
+    process took about twice the drawing thread's CPU (16.5-23.4 against 8-11 ms a
+    frame, docs/roi.md). Whether that thread spins depends on the machine's load, so the
+    call itself is what is checked, over the poses of a moving view with seams (the
+    grid's other products are ``np.einsum`` already, ``RigProjection._evaluate_soa``).
+    """
+    import cv2
+
+    calls = []
+
+    def refuse(name):
+        def call(*args, **kwargs):
+            calls.append(name)
+            raise AssertionError(f'{name} in a moving frame')
+        return call
+
+    rig = ring_rig(5, 320, 240, 275.0, 36.0, distortion=LENS, mount_error_deg=0.5, seed=2)
+    mosaic = ViewMosaic(rig)
+    view = LevelledView(rig, mosaic.layout, 640, 360, ViewPose.from_degrees(0, 0, 60),
+                        renderer='grid')
+    view.set_attitude(0.03, -0.05)
+    monkeypatch.setattr(cv2, 'gemm', refuse('cv2.gemm'))
+    seams = 0
+    for k in range(12):
+        view.set_pose(ViewPose.from_degrees(-40.0 + 7.0 * k, 2.0 * math.sin(k), 60.0))
+        view.render(mosaic.image, k)
+        seams += len(view._grid.plan.regions) > 1
+    assert not calls and seams >= 6, (calls, seams)
