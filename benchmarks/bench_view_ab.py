@@ -9,10 +9,12 @@ the other file's :class:`GridMaps` and with the installed one, alternating frame
 (the order rotated every frame), one OpenCV thread, CPU time of this thread; medians and
 ratios to the floor, and the 90th percentile. ``--clock process`` counts the CPU time of
 every thread of the process (OpenBLAS's threads, for one, spin on the other core: not
-this thread's CPU time), ``--clock wall`` the wall time (what a frame takes to come,
-waits on other threads included). The other
-file is, e.g., ``git show main~5:accelcal_ros/panorama/view_grid.py > /tmp/old_view_grid.py``.
-Run: ``python benchmarks/bench_view_ab.py OTHER_VIEW_GRID.py [--frames 300] [--clock wall]``.
+this thread's CPU time; the two files then share one process, so compare each file
+against itself in a run of its own), ``--clock wall`` the wall time (what a frame takes
+to come, waits on other threads included). The other file is, e.g., ``git show
+main~5:accelcal_ros/panorama/view_grid.py > /tmp/old_view_grid.py``.
+Run: ``python benchmarks/bench_view_ab.py OTHER_VIEW_GRID.py [--frames 300]
+[--clock cpu|process|wall]``.
 """
 import argparse
 import math

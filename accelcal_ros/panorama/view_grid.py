@@ -447,9 +447,11 @@ class GridMaps:
         bilinear interpolation of the camera's corner nodes with the resize's weights
         (one product, pairs x 4 corners times 4 x pixels, by ``np.einsum`` in this
         thread: ``cv2.gemm`` on OpenCV 5 and ``np.matmul`` hand it to OpenBLAS's threads,
-        whose wait took 3-18 ms a call on a loaded 2-core machine against 0.2-0.45 ms
-        here), kept where the camera's region holds the pixel; the regions are disjoint,
-        so each pixel takes the pair that holds it, ``OUTSIDE`` where none does.
+        whose second thread then spins on the other core, so a moving view's process
+        took twice its thread's CPU, and on a loaded 2-core machine a call waited a
+        median 3-15 ms for them, against 0.4 ms here), kept where the camera's region
+        holds the pixel; the regions are disjoint, so each pixel takes the pair that
+        holds it, ``OUTSIDE`` where none does.
         """
         s = self.step
         cn, nyc, nxc = hit.shape
