@@ -5,7 +5,7 @@ Subscribes ``points`` (sensor_msgs/PointCloud2 with a per-point time field ``tim
 relative to the header stamp), ``t`` (ns, relative) or ``timestamp`` (s, absolute);
 best effort, or reliable with ``points_reliable``) and ``odom`` (nav_msgs/Odometry: pose
 of the IMU body, ``child_frame_id``, in the navigation frame ``header.frame_id``;
-reliable QoS depth 200). Publishes each
+reliable QoS depth 2000: 10 s of 200 Hz). Publishes each
 georeferenced scan on ``points_georef`` (PointCloud2 in the navigation frame, fields
 x y z [intensity ring] timestamp) and ``/diagnostics`` (counts, boresight, last save;
 WARN without a boresight, ERROR after a failed write). ``cloud_assembler/save``
@@ -24,7 +24,15 @@ Dropped input, counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter`
 outside the odometry's time span, or between two poses further apart than
 ``max_pose_gap_s``, are dropped, never extrapolated or interpolated across (said once,
 counted in the scan totals).
+
+Threads: the subscriptions' callbacks only hand their message to an inbox (a deque, in
+arrival order with the arrival time) and never wait for the georeferencing; the 50 Hz
+timer drains it into the core and georeferences what is ready. Callbacks that waited on
+the core's lock while the timer worked made the MultiThreadedExecutor this node once
+used take 0.3-4 s per scan instead of 6 ms (odometry then overflowed its queue: 0.5-0.9 s
+pose gaps in the demo's drive); it runs on the EventsExecutor, as the other nodes.
 """
+from collections import deque
 import threading
 import time
 
@@ -47,6 +55,9 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+ODOMETRY_QUEUE_DEPTH = 2000
+"""Odometry messages the subscription queues (10 s at 200 Hz, about 1.5 MB): poses are
+small, and one lost on a moving platform is a gap whose points are dropped."""
 NO_BORESIGHT = ('NO BORESIGHT GIVEN: boresight_file is empty and boresight_rpy_deg is '
                 '[0, 0, 0], so the LiDAR axes are taken as the IMU axes (identity). The '
                 'cloud is only right if they are; calibrate with lidar_calibration and '
@@ -70,6 +81,7 @@ class CloudAssemblerNode(Node):
                                     p['pose_buffer_s'], p['max_wait_s'], p['max_points'],
                                     max_gap_s=p['max_pose_gap_s'] or None)
         self._lock = threading.Lock()
+        self._inbox: deque = deque()  # ('pose' | 'scan', arrival s, ...) in arrival order
         self._nav_frame = 'map'
         self._warned = set()
         self._drops = DropCounter(self)
@@ -80,7 +92,7 @@ class CloudAssemblerNode(Node):
                                history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(PointCloud2, 'points', self._on_cloud, scans_qos,
                                  callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_subscription(Odometry, 'odom', self._on_odom, 200,
+        self.create_subscription(Odometry, 'odom', self._on_odom, ODOMETRY_QUEUE_DEPTH,
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self.create_service(Trigger, 'cloud_assembler/save', self._on_save)
         self.create_timer(0.02, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
@@ -137,25 +149,39 @@ class CloudAssemblerNode(Node):
     def _on_odom(self, msg):
         pose = msg.pose.pose
         q = pose.orientation
-        with self._lock:
-            reason = self._core.add_pose(stamp_to_seconds(msg.header.stamp),
-                                         [pose.position.x, pose.position.y, pose.position.z],
-                                         [q.x, q.y, q.z, q.w], time.monotonic())
-            if msg.header.frame_id:
-                self._nav_frame = msg.header.frame_id
-        if reason:
-            self._drops.drop('odometry', f'odometry rejected: {reason}')
+        self._inbox.append(('pose', time.monotonic(), stamp_to_seconds(msg.header.stamp),
+                            [pose.position.x, pose.position.y, pose.position.z],
+                            [q.x, q.y, q.z, q.w], msg.header.frame_id))
 
     def _on_cloud(self, msg):
         try:
             cloud = pointcloud2_to_array(msg)
-            with self._lock:
-                self._core.add_scan(stamp_to_seconds(msg.header.stamp), cloud, time.monotonic())
         except AccelcalError as exc:
             self._drops.drop('scans', f'scan dropped: {exc}')
+            return
+        self._inbox.append(('scan', time.monotonic(), stamp_to_seconds(msg.header.stamp), cloud))
+
+    def _drain(self):
+        """Hand the inbox to the core, in arrival order (with the lock held)."""
+        while self._inbox:
+            item = self._inbox.popleft()
+            if item[0] == 'pose':
+                _, arrival, stamp, position, quat, frame = item
+                reason = self._core.add_pose(stamp, position, quat, arrival)
+                if reason:
+                    self._drops.drop('odometry', f'odometry rejected: {reason}')
+                elif frame:
+                    self._nav_frame = frame
+                continue
+            _, arrival, stamp, cloud = item
+            try:
+                self._core.add_scan(stamp, cloud, arrival)
+            except AccelcalError as exc:
+                self._drops.drop('scans', f'scan dropped: {exc}')
 
     def _on_timer(self):
         with self._lock:
+            self._drain()
             done = self._core.process(time.monotonic())
             frame = self.params['frame_id'] or self._nav_frame
         for nav, stats in done:
@@ -210,8 +236,16 @@ class CloudAssemblerNode(Node):
         return response
 
     def close(self):
-        """Write the accumulated cloud at shutdown (when output_file is set)."""
+        """
+        Write the accumulated cloud at shutdown (when output_file is set).
+
+        What arrived and still waits (for odometry, or in the inbox) is georeferenced
+        first with the poses there are; points they do not cover are counted as dropped.
+        """
         if self.params['output_file']:
+            with self._lock:
+                self._drain()
+                self._core.process(time.monotonic(), force=True)
             ok, message = self._save()
             if ok:
                 self.get_logger().info(message)
@@ -227,4 +261,4 @@ def _rpy(rotation):
 
 def main(args=None):
     """Run the ``cloud_assembler`` node."""
-    return run(CloudAssemblerNode, args)
+    return run(CloudAssemblerNode, args, executor='events')
