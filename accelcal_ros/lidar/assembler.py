@@ -87,6 +87,11 @@ class CloudAssembler:
         self._pending.append((now_s, cloud, times))
         self._pending_points += len(cloud)
 
+    @property
+    def waiting(self) -> int:
+        """Return how many scans wait for odometry to cover them."""
+        return len(self._pending)
+
     def pose_stream(self) -> Optional[PoseStream]:
         """Return the buffered poses as a PoseStream (None with fewer than 2)."""
         if len(self._poses) < 2:

@@ -8,9 +8,11 @@ of the IMU body, ``child_frame_id``, in the navigation frame ``header.frame_id``
 reliable QoS depth 2000: 10 s of 200 Hz). Publishes each
 georeferenced scan on ``points_georef`` (PointCloud2 in the navigation frame, fields
 x y z [intensity ring] timestamp) and ``/diagnostics`` (counts, boresight, last save;
-WARN without a boresight, ERROR after a failed write). ``cloud_assembler/save``
+WARN without a boresight, ERROR after a failed write; ``scans_waiting``: scans waiting
+for odometry to cover them). ``cloud_assembler/save``
 (std_srvs/Trigger) writes the accumulated cloud to ``output_file`` (.ply or .pcd,
-atomic), as does shutdown; a failed write is logged at ERROR. Without a boresight (no
+atomic), as does shutdown (after georeferencing what still waits, with the poses
+there are); a failed write is logged at ERROR. Without a boresight (no
 file, rpy all zero) it warns loudly at start and in every diagnostics message.
 Frames and equation: :mod:`accelcal_ros.lidar.georef`. With ``map_crs`` the odometry is
 in that projected CRS (UTM): points go out in the ``map`` frame anchored at
@@ -125,12 +127,13 @@ class CloudAssemblerNode(Node):
             totals = dict(self._core.totals)
             summary = self._core.summary()
             rejected = self._core.rejected_poses
+            waiting = self._core.waiting
         level, message = 0, summary
         if self._no_boresight:
             level, message = 1, f'identity boresight (none given); {summary}'
         if self._last_save.startswith('cannot write'):
             level, message = 2, self._last_save
-        values = {'scans': totals['scans'], 'points': totals['points'],
+        values = {'scans': totals['scans'], 'scans_waiting': waiting, 'points': totals['points'],
                   'points_georeferenced': totals['kept'],
                   'points_before_poses': totals['before'],
                   'points_after_poses': totals['after'],

@@ -4,13 +4,18 @@ import time
 from accelcal_ros.fileio import write_text_atomic
 from accelcal_ros.lidar import scanner_sim as sim
 from accelcal_ros.lidar.boresight import load_boresight
+from accelcal_ros.lidar.cloud import make_cloud
 from accelcal_ros.lidar.ply import read_ply
-from accelcal_ros.lidar.scanner_sim_ros import (drive_moving_platform, drive_static_positions,
-                                                finish_calibration, PACKETS_PER_REVOLUTION)
+from accelcal_ros.lidar.scanner_sim_ros import (cloud_msg, drive_moving_platform,
+                                                drive_static_positions, finish_calibration,
+                                                odom_msg, PACKETS_PER_REVOLUTION,
+                                                wait_for_subscribers)
 from accelcal_ros.lidar.wahba import rotation_angle_deg
 from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.static_tf import msg_to_transform, STATIC_TF_QOS
 from accelcal_ros.textformats import dump_yaml, load_yaml_mapping
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 from sensor_msgs.msg import PointCloud2
@@ -93,6 +98,48 @@ def test_cloud_assembler_keeps_every_pose_of_a_drive(graph, tmp_path, monkeypatc
     assert got == points and '0 in pose gaps' in message, message
     # a reliable writer keeps 20 scans: one that the node takes too late is lost
     assert scans >= sent // 2, message
+
+
+@pytest.mark.graph
+def test_cloud_assembler_writes_what_still_waits_at_shutdown(graph, tmp_path):
+    """
+    A scan still waiting for odometry at shutdown is georeferenced with the poses there are.
+
+    Poses cover 0-1 s of a scan whose points run to 1.5 s; ``max_wait_s`` 10 keeps it
+    waiting (``scans_waiting`` 1 in /diagnostics). SIGINT: the file holds the covered
+    points, moved by the pose (identity rotation, translation (1, 2, 3) m); the node
+    before wrote none of them.
+    """
+    diagnostics = graph.collect(DiagnosticArray, '/diagnostics', 50)
+    ply = tmp_path / 'map.ply'
+    proc = graph.start('cloud_assembler', params={'output_file': str(ply), 'max_wait_s': 10.0,
+                                                  'points_reliable': True})
+    odom = graph.node.create_publisher(Odometry, 'odom', 100)
+    points = graph.node.create_publisher(PointCloud2, 'points', 10)
+    wait_for_subscribers([odom, points])
+    for k in range(11):
+        odom.publish(odom_msg(100.0 + 0.1 * k, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0]))
+    rel = np.linspace(0.0, 1.5, 200)
+    xyz = np.stack([np.cos(rel), np.sin(rel), 0.1 * rel], axis=1) * 5.0
+    points.publish(cloud_msg(make_cloud(xyz, time=rel), 100.0))
+    deadline = time.monotonic() + 30.0
+    while True:
+        statuses = [s for m in diagnostics.snapshot()[0] for s in m.status
+                    if s.name.startswith('cloud_assembler: georeferenced')]
+        if statuses and {kv.key: kv.value for kv in statuses[-1].values}[
+                'scans_waiting'] == '1':
+            break
+        assert time.monotonic() < deadline, 'the scan never waited: ' + proc.output()
+        time.sleep(0.1)
+    assert proc.stop() == 0
+    with open(proc.log_path) as handle:
+        log = handle.read()
+    covered = rel <= 1.0 + 1e-9
+    saved = read_ply(ply)
+    got = np.stack([saved['x'], saved['y'], saved['z']], axis=1)
+    assert len(got) == covered.sum(), log
+    np.testing.assert_allclose(got, xyz[covered] + [1.0, 2.0, 3.0], atol=1e-5)
+    assert f'{covered.sum()} of 200 points' in log, log
 
 
 @pytest.mark.graph
