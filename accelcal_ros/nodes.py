@@ -18,6 +18,7 @@ sets it (set it to use more); OpenBLAS reads it once, when numpy loads, which he
 after this module. The ``accelcal``
 commands keep OpenBLAS's default: they run alone, over recorded data.
 """
+from functools import partial
 import importlib
 import os
 import sys
@@ -54,46 +55,13 @@ def run_node(name: str) -> int:
     return importlib.import_module(NODE_MODULES[name]).main()
 
 
-def imu_driver() -> int:
-    """Run the ``imu_driver`` node."""
-    return run_node('imu_driver')
-
-
-def calibration() -> int:
-    """Run the ``calibration`` node."""
-    return run_node('calibration')
-
-
-def attitude() -> int:
-    """Run the ``attitude`` node."""
-    return run_node('attitude')
-
-
-def stitcher() -> int:
-    """Run the ``stitcher`` node."""
-    return run_node('stitcher')
-
-
-def p2p() -> int:
-    """Run the ``p2p`` node."""
-    return run_node('p2p')
-
-
-def lidar_calibration() -> int:
-    """Run the ``lidar_calibration`` node."""
-    return run_node('lidar_calibration')
-
-
-def rig_calibration() -> int:
-    """Run the ``rig_calibration`` node."""
-    return run_node('rig_calibration')
-
-
-def cloud_assembler() -> int:
-    """Run the ``cloud_assembler`` node."""
-    return run_node('cloud_assembler')
-
-
-def calibration_frames() -> int:
-    """Run the ``calibration_frames`` node."""
-    return run_node('calibration_frames')
+# the console_scripts (setup.py): one per node, each ``run_node`` of its name
+imu_driver = partial(run_node, 'imu_driver')
+calibration = partial(run_node, 'calibration')
+attitude = partial(run_node, 'attitude')
+stitcher = partial(run_node, 'stitcher')
+p2p = partial(run_node, 'p2p')
+lidar_calibration = partial(run_node, 'lidar_calibration')
+rig_calibration = partial(run_node, 'rig_calibration')
+cloud_assembler = partial(run_node, 'cloud_assembler')
+calibration_frames = partial(run_node, 'calibration_frames')
