@@ -31,7 +31,7 @@ def _has_kind(value, kind):
 def _executables():
     with open(os.path.join(REPO, 'setup.py')) as handle:
         text = handle.read()
-    return sorted(set(re.findall(r"'(\w+) = accelcal_ros\.[\w.]+:main'", text)) - {'accelcal'})
+    return sorted(set(re.findall(r"'(\w+) = accelcal_ros\.[\w.]+:\w+'", text)) - {'accelcal'})
 
 
 def test_every_node_executable_has_its_param_specs():

@@ -9,25 +9,20 @@ that on the installed executable).
 """
 import importlib
 import json
-import os
-import re
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.node_params import NODE_PARAMS, node_specs
+from accelcal_ros.nodes import NODE_MODULES
 from accelcal_ros.rosutil.runner import _node_in_traceback
 import pytest
 import rclpy
 from rclpy.node import Node
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
 
 def _node_classes():
-    with open(os.path.join(REPO, 'setup.py')) as handle:
-        entries = dict(re.findall(r"'(\w+) = (accelcal_ros\.[\w.]+):main'", handle.read()))
     classes = {}
-    for exe in NODE_PARAMS:
-        module = importlib.import_module(entries[exe])
+    for exe in NODE_PARAMS:  # the executables' node modules (setup.py -> accelcal_ros.nodes)
+        module = importlib.import_module(NODE_MODULES[exe])
         found = [c for c in vars(module).values() if isinstance(c, type)
                  and issubclass(c, Node) and c.__module__ == module.__name__]
         assert len(found) == 1, (exe, found)
