@@ -72,7 +72,7 @@ def test_cloud_assembler_keeps_every_pose_of_a_drive(graph, tmp_path, monkeypatc
     Odometry is reliable, so a pose gap means the node lost poses: its callbacks once
     waited on the georeferencing's lock, and under the MultiThreadedExecutor a scan then
     took 0.3-4 s instead of 6 ms, the odometry overflowed its queue and 0.5-0.9 s of poses
-    went missing (1 to 3 of 10 s of this drive's points in gaps, every run). The executor
+    went missing (12-30 % of this drive's points in gaps, every run). The executor
     is the node's default and ACCELCAL_EXECUTOR=multi.
     """
     if executor != 'events':
