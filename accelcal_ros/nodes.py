@@ -1,22 +1,22 @@
 """
 The node executables' entry points (``setup.py`` console_scripts): BLAS in one thread.
 
-Each function starts one node process, as ``ros2 run accelcal_ros <name>`` does: it calls
-:func:`prepare_node_process`, then imports the node's module and runs its ``main()``.
-Like ``cli.py`` for the ``accelcal`` commands, this dispatcher is the one module besides
-``cli.py`` that sees every feature; it imports a node's module only when that node starts.
+Each entry point (:func:`run_node` of the executable's name) starts one node process, as
+``ros2 run accelcal_ros <name>`` does: it calls :func:`prepare_node_process`, then imports
+the node's module and runs its ``main()``. Like ``cli.py`` for the ``accelcal`` commands,
+this dispatcher reaches every feature, importing a node's module only when it starts.
 
 Why: OpenBLAS (numpy's, OpenCV 5's, and Debian's and Ubuntu's ``libopenblas``) hands a
 product above about 262 k multiply-adds to its threads (an ``N x 3`` by ``3 x 3`` product
 from ``N`` = 29 k points: a VLP-16 revolution), and those threads then spin, waiting for
 the next one. Measured on this 2-core machine (``benchmarks/bench_blas_threads.py``): one
 such product every 50 ms, as a node taking 20 scans a second does, kept a whole core busy
-(101-104 % of a core against 1 % for a product below the size; 100-102 % at 10 a
-second), and with one BLAS thread it took 7 %. A robot computer's other nodes need that
+(101-105 % of a core against 1 % for a product below the size; 100-102 % at 10 a
+second); with one BLAS thread it took 2-7 %. A robot computer's other nodes need that
 core. So a node process starts with ``OPENBLAS_NUM_THREADS=1`` unless its environment
 sets it (set it to use more); OpenBLAS reads it once, when numpy loads, which here is
-after this module. The ``accelcal``
-commands keep OpenBLAS's default: they run alone, over recorded data.
+after this module. The ``accelcal`` commands keep OpenBLAS's default: they run alone,
+over recorded data.
 """
 from functools import partial
 import importlib

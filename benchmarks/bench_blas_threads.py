@@ -16,6 +16,8 @@ import os
 import subprocess
 import sys
 
+from accelcal_ros.nodes import BLAS_THREADS_VARIABLE
+
 CHILD = r"""
 import json, statistics, sys, time
 import numpy as np
@@ -38,9 +40,9 @@ print(json.dumps({'product_ms': 1e3 * statistics.median(walls),
 def measure(n, threads):
     """Return the child's figures for ``n`` points, ``threads`` None = OpenBLAS's default."""
     env = dict(os.environ)
-    env.pop('OPENBLAS_NUM_THREADS', None)
+    env.pop(BLAS_THREADS_VARIABLE, None)
     if threads is not None:
-        env['OPENBLAS_NUM_THREADS'] = str(threads)
+        env[BLAS_THREADS_VARIABLE] = str(threads)
     done = subprocess.run([sys.executable, '-c', CHILD, str(n)], env=env, check=True,
                           capture_output=True, text=True)
     return json.loads(done.stdout)
