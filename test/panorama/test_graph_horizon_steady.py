@@ -102,10 +102,13 @@ class _Horizons:
         self.lock = threading.Lock()
         self.items = []
         self.unmeasured = 0
+        self.received = 0
         self._sub = graph.node.create_subscription(Image, 'panorama', self._on_msg,
                                                    QoSProfile(depth=10))
 
     def _on_msg(self, msg):
+        with self.lock:
+            self.received += 1
         rows = horizon_rows_fine(image_msg_to_array(msg), GEOMETRY)
         try:
             tilt = _tilt(rows)
@@ -115,6 +118,15 @@ class _Horizons:
             return
         with self.lock:
             self.items.append((stamp_to_seconds(msg.header.stamp), *tilt))
+
+    def summary(self, after):
+        """Say what arrived: counts and stamps relative to ``after`` (a failure's message)."""
+        with self.lock:
+            stamps = [item[0] - after for item in self.items]
+            return (f'{self.received} panoramas received, {self.unmeasured} unmeasured, '
+                    f'{len(stamps)} measured, stamped '
+                    + (f'{min(stamps):+.2f} to {max(stamps):+.2f} s' if stamps else '-')
+                    + ' from the first attitude + the settling time')
 
     def scored(self, after):
         """Return the ``(stamp, elevation, slope)`` rows stamped after ``after``."""
@@ -181,7 +193,7 @@ def test_still_scene_panorama_horizon_is_steady(viewer_graph, tmp_path, rate):
     # the cameras: 25 fps, hardware-triggered stamps (a late publish keeps its nominal stamp;
     # a frame more than one period late is skipped, as a camera would drop it)
     start = time.time()
-    frame = 0
+    frame = skipped = 0
     first_attitude = None
     deadline = time.monotonic() + 60.0 + 2.0 * SETTLE_S
     while time.monotonic() < deadline:
@@ -191,6 +203,7 @@ def test_still_scene_panorama_horizon_is_steady(viewer_graph, tmp_path, rate):
             time.sleep(wait)
         elif wait < -FRAME_S:
             frame += int(-wait // FRAME_S)
+            skipped += int(-wait // FRAME_S)
             continue
         for pub, msg in zip(publishers, messages):
             msg.header.stamp = seconds_to_stamp(stamp, Time)
@@ -207,7 +220,11 @@ def test_still_scene_panorama_horizon_is_steady(viewer_graph, tmp_path, rate):
     assert first_attitude is not None, 'no attitude received'
     items = horizons.scored(first_attitude + SETTLE_S)
     steps = _successive(items)
-    assert len(steps) >= 20, (len(items), horizons.unmeasured, stitcher.output())
+    assert len(steps) >= 20, (f'{len(steps)} successive pairs; '
+                              f'{horizons.summary(first_attitude + SETTLE_S)}; {frame} frame '
+                              f'sets sent, {skipped} skipped late; first attitude stamped '
+                              f'{first_attitude - start:+.2f} s from the first frame',
+                              stitcher.output())
     jitter = FOCAL_PX * math.sqrt(np.mean(np.sum(steps ** 2, axis=1)))
     level = np.degrees(np.hypot(*items[:, 1:].mean(axis=0)))
     print(f'{rate:g} Hz: {len(items)} panoramas, {len(steps)} successive pairs: horizon '
