@@ -56,6 +56,22 @@ FrameSet = Tuple[List[np.ndarray], float, float, float]
 """``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
 
 
+def next_draw_due(due_s: float, start_s: float, period_s: float) -> float:
+    """
+    Return when a tab's next drawing may start: paced on the clock, one per ``period_s``.
+
+    ``due_s``: when the drawing that started at ``start_s`` was due (monotonic seconds).
+    The due times advance a period per drawing, so one drawing that starts late (the
+    render pool busy, a frame set late) does not push every later one back. Spacing each
+    drawing a period after the previous one's start did: the lags added up, and every
+    period of lag lost a frame set (4 tabs of 25 fps got 20-22 frames/s each while the
+    server used 0.9 of 2 cores, ``benchmarks/bench_serve.py --stitcher``). A drawing
+    more than half a period late starts the clock again half a period after it, so the
+    rate stays at most one per period and two drawings are at least half a period apart.
+    """
+    return max(due_s + period_s, start_s + 0.5 * period_s)
+
+
 def is_loopback(host: str) -> bool:
     """Return True for 127.0.0.0/8, ::1 and ``localhost``."""
     if host == 'localhost':
@@ -274,7 +290,7 @@ class ViewServer:
             await ws.send_str(json.dumps({'refused': str(exc)}))
             await ws.close(code=1013, message=b'too many views')
             return ws
-        state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0, 'last': 0.0}
+        state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0, 'due': 0.0}
         sender = asyncio.get_running_loop().create_task(self._send_frames(ws, name, state))
         try:
             async for msg in ws:
@@ -332,14 +348,14 @@ class ViewServer:
             if ws.closed:
                 return
             # a tab dragged all the time is drawn at the frame rate, not faster: the
-            # newest pose after the pause (the first move after a rest goes at once)
-            rate = max(self.frame_rate(), MIN_DRAW_RATE_HZ)
-            wait = state['last'] + 1.0 / rate - time.monotonic()
+            # newest pose when it is due (the first move after a rest goes at once)
+            period = 1.0 / max(self.frame_rate(), MIN_DRAW_RATE_HZ)
+            wait = state['due'] - time.monotonic()
             if wait > 0:
                 await asyncio.sleep(wait)
                 if ws.closed:
                     return
-            state['last'] = time.monotonic()
+            state['due'] = next_draw_due(state['due'], time.monotonic(), period)
             state['dirty'] = False
             seen_frame = self.frame_number
 

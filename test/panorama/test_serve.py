@@ -9,7 +9,7 @@ from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.roi_study import render_view_truth
-from accelcal_ros.panorama.serve import is_loopback, RENDER_THREADS, ViewServer
+from accelcal_ros.panorama.serve import is_loopback, next_draw_due, RENDER_THREADS, ViewServer
 from accelcal_ros.panorama.view import ViewPose
 from accelcal_ros.panorama.view_set import ViewSet
 import numpy as np
@@ -306,3 +306,55 @@ def test_loopback_and_bad_server_arguments():
     frames = [([np.zeros((240, 320, 3), np.uint8)] * 3, 0.0, 0.0, 0.0)]
     with pytest.raises(InputError, match='fps'):
         ViewServer(ViewSet(rig), frames, fps=0.0)
+
+
+def _shown(pace, late_s, period_s=0.04):
+    """
+    Simulate one tab of the server's loop; return the drawings' start times (s).
+
+    Frame set ``k`` arrives at ``k * period_s``; the tab draws when a frame set newer than
+    its last drawing has arrived and its pacing allows (``pace(due, start, period)`` gives
+    the next due time); drawing ``n`` starts ``late_s[n]`` after that (the render pool
+    busy). Each drawing shows the newest frame set at its start.
+    """
+    due, shown, starts = 0.0, -1, []
+    for late in late_s:
+        newest = math.floor(max(due, (shown + 1) * period_s) / period_s + 1e-9)
+        start = max(due, newest * period_s) + late
+        shown = math.floor(start / period_s + 1e-9)
+        starts.append((start, shown))
+        due = pace(due, start, period_s)
+    return starts
+
+
+def test_tabs_are_paced_on_the_clock_and_a_late_drawing_loses_no_frame_set():
+    """
+    Drawings late by up to nearly half a period show every frame set, never faster.
+
+    The pacing before (a period after each drawing's start) added the lags up: here it
+    loses frame sets, as 4 tabs of 25 fps got 20-22 frames/s each with the server at 0.9
+    of 2 cores (``benchmarks/bench_serve.py --stitcher``).
+    """
+    rng = np.random.default_rng(5)
+    period = 0.04
+    late = rng.uniform(0.0, 0.45 * period, 2000)
+    starts = _shown(next_draw_due, late, period)
+    times, frames = np.array([s for s, _ in starts]), np.array([f for _, f in starts])
+    assert np.all(np.diff(frames) == 1), 'every frame set shown once, in order'
+    assert np.diff(times).min() >= 0.5 * period - 1e-12
+    # never faster than the frame rate: in any span, at most one drawing more than periods
+    span = times[100:] - times[:-100]
+    assert span.min() >= 99 * period
+    old = _shown(lambda due, start, p: start + p, late, period)
+    old_frames = np.array([f for _, f in old])
+    assert np.count_nonzero(np.diff(old_frames) > 1) > 50, 'the old pacing lost sets'
+    # a tab that comes back after a rest draws at once, then at most one per period
+    assert next_draw_due(0.0, 100.0, period) == pytest.approx(100.0 + 0.5 * period)
+    assert next_draw_due(100.02, 100.02, period) == pytest.approx(100.06)
+    # dragged with no new frames: drawings stay a period apart on average
+    due, start = 0.0, []
+    for _ in range(500):
+        start.append(due + rng.uniform(0.0, 0.3 * period))
+        due = next_draw_due(due, start[-1], period)
+    start = np.array(start)
+    assert (start[100:] - start[:-100]).min() >= 99 * period
