@@ -19,12 +19,14 @@ machine; ``--clients here`` runs them in the server's process (the figures befor
 there they shared its GIL, and on OpenCV 4.6 decoded without SIMD, about 9 ms a frame).
 ``--stitcher`` runs the ``stitcher``'s panorama of every frame set beside (one thread at
 the frame rate, attitude fixed: issue 24's "views beside the stitcher").
-Run: ``python benchmarks/bench_serve.py [--seconds 5] [--width 1280 --height 720]
+Each row counts ``--seconds`` after ``--warmup`` (1 s): the tabs connect, the views' first
+maps and the stitcher's lookup are built first (counted in, they cost a row 1-3 frame sets).
+Run: ``python benchmarks/bench_serve.py [--seconds 5] [--warmup 1] [--width 1280 --height 720]
 [--stitcher] [--clients process|here]``.
 """
 import argparse
 import asyncio
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 import json
 import math
 import multiprocessing
@@ -53,10 +55,11 @@ def decode(data):
     return simplejpeg.decode_jpeg(data, colorspace='BGR')
 
 
-def run_tabs(url, seconds, moving, count):
+def run_tabs(url, seconds, moving, count, warmup=0.0):
     """Return the frames each of ``count`` clients received (run in a process of its own)."""
     async def run():
-        return await asyncio.gather(*[tab(url, seconds, moving, i) for i in range(count)])
+        return await asyncio.gather(*[tab(url, seconds, moving, i, warmup)
+                                      for i in range(count)])
     return asyncio.run(run())
 
 
@@ -88,13 +91,14 @@ class StitcherBeside:
         return self.done
 
 
-async def tab(url, seconds, moving, index):
-    """Return frames received in ``seconds`` by one client."""
+async def tab(url, seconds, moving, index, warmup=0.0):
+    """Return frames received in ``seconds`` by one client, after ``warmup`` seconds."""
     count, az = 0, -40.0 + 25.0 * index
     async with aiohttp.ClientSession() as session:
         ws = await session.ws_connect(url + 'ws', max_msg_size=0, compress=15)  # as Chromium
         await ws.send_str(json.dumps({'az': az}))
-        end = time.monotonic() + seconds
+        begin = time.monotonic() + warmup
+        end = begin + seconds
         info = None
         while time.monotonic() < end:
             msg = await ws.receive()
@@ -104,7 +108,7 @@ async def tab(url, seconds, moving, index):
             if msg.type != aiohttp.WSMsgType.BINARY:
                 break
             decode(msg.data)
-            count += 1
+            count += time.monotonic() >= begin
             if moving:
                 az += 0.2
                 await ws.send_str(json.dumps({'az': az}))
@@ -118,6 +122,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--seconds', type=float, default=5.0, help='per measurement (5)')
     parser.add_argument('--fps', type=float, default=25.0, help='playback rate (25)')
+    parser.add_argument('--warmup', type=float, default=1.0,
+                        help='seconds each row runs before it counts (1): the tabs connect, '
+                        "the views' first maps and the stitcher's lookup are built")
     parser.add_argument('--width', type=int, default=1280)
     parser.add_argument('--height', type=int, default=720)
     parser.add_argument('--threads', type=int, default=2, help='cv2.setNumThreads (2)')
@@ -148,35 +155,36 @@ def main():
     print('  tabs | view     | frames/s per tab           | total frames/s | frame sets/s '
           '| panoramas/s | server cores | load')
     clients = ProcessPoolExecutor(1, multiprocessing.get_context('spawn')) \
-        if args.clients == 'process' else None
-    if clients is not None:
-        clients.submit(sum, ()).result()   # started before the measurements
+        if args.clients == 'process' else ThreadPoolExecutor(1)
+    clients.submit(sum, ()).result()   # started before the measurements
     for moving in (False, True):
         for count in (1, 2, 4):
             views = ViewSet(rig, max_views=8, width=args.width, height=args.height)
             server = ViewServer(views, frames, args.fps)
             url = server.start('127.0.0.1', 0)
             beside = StitcherBeside(rig, frames, args.fps) if args.stitcher else None
-            start, cpu = time.monotonic(), time.process_time()
-            played, stitched = server.frame_number, '-'
+            stitched = '-'
             try:
-                if clients is not None:
-                    counts = clients.submit(run_tabs, url, args.seconds, moving, count).result()
-                else:
-                    counts = run_tabs(url, args.seconds, moving, count)
+                running = clients.submit(run_tabs, url, args.seconds, moving, count,
+                                         args.warmup)
+                time.sleep(args.warmup)
+                start, cpu = time.monotonic(), time.process_time()
+                played, made = server.frame_number, beside.done if beside else 0
+                counts = running.result()
                 wall = time.monotonic() - start
                 cores = (time.process_time() - cpu) / wall
                 played = (server.frame_number - played) / wall
+                if beside is not None:
+                    stitched = f'{(beside.done - made) / wall:.1f}'
             finally:
                 if beside is not None:
-                    stitched = f'{beside.stop() / (time.monotonic() - start):.1f}'
+                    beside.stop()
                 server.stop()
             rates = [c / args.seconds for c in counts]
             print(f'  {count:4d} | {"moving" if moving else "still":8} | '
                   f'{" ".join(f"{r:5.1f}" for r in rates):26} | {sum(rates):14.1f} | '
                   f'{played:12.1f} | {stitched:>11} | {cores:12.2f} | {os.getloadavg()[0]:.1f}')
-    if clients is not None:
-        clients.shutdown()
+    clients.shutdown()
 
 
 if __name__ == '__main__':

@@ -175,7 +175,7 @@ class P2PNode(Node):
             raw = parse_image_cdr(data)
             enc = raw.encoding.lower()
             grey = image_array(raw.height, raw.width, raw.encoding, raw.is_bigendian,
-                               raw.step, raw.data, raw.offset,
+                               raw.step, raw.data, raw.offset, length=raw.length,
                                want=None if enc in ('mono8', '8uc1') else 'mono8',
                                topic=self._topic('image'))
         except InputError as exc:

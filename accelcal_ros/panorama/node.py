@@ -248,7 +248,7 @@ class StitcherNode(Node):
             want = None if self.encoding in _AS_IS.get(enc, ()) else self.encoding
             image = image_array(raw.height, raw.width, raw.encoding, raw.is_bigendian,
                                 raw.step, raw.data, raw.offset, want=want, topic=topic,
-                                expected_size=self._sizes[index])
+                                expected_size=self._sizes[index], length=raw.length)
         except InputError as exc:
             self.policy.reject_frame(index, str(exc))
             return

@@ -97,13 +97,18 @@ def _where(topic: str) -> str:
 def image_array(height: int, width: int, encoding: str, is_bigendian: bool, step: int,
                 data: Any, offset: int = 0, want: Optional[str] = None,
                 encodings: Sequence[str] = SUPPORTED_ENCODINGS, topic: str = '',
-                expected_size: Optional[Tuple[int, int]] = None) -> np.ndarray:
+                expected_size: Optional[Tuple[int, int]] = None,
+                length: Optional[int] = None) -> np.ndarray:
     """
     Array of an image's fields (``data``: any buffer; pixels start at ``offset``).
 
     A view on ``data`` where no conversion is needed (padded rows: a strided view);
-    ``expected_size`` ``(width, height)`` is checked. Raises :class:`InputError`
-    naming ``topic``, the encoding and the sizes.
+    ``expected_size`` ``(width, height)`` is checked. ``length``: the message's own
+    count of data bytes (default: what ``data`` holds after ``offset``), which must be
+    ``step * height`` as sensor_msgs/Image says: more data than the header accounts for
+    means the header does not describe it (a wrong width, height or step), so it is
+    refused as less is. Raises :class:`InputError` naming ``topic``, the encoding and
+    the sizes.
     """
     enc = encoding.lower()
     if enc not in encodings:
@@ -120,10 +125,15 @@ def image_array(height: int, width: int, encoding: str, is_bigendian: bool, step
         dtype = dtype.newbyteorder('>')
     row_bytes = width * channels * dtype.itemsize
     size = len(data) - offset if not isinstance(data, np.ndarray) else data.nbytes - offset
-    if step < row_bytes or size < step * height:
-        raise InputError(f'{_where(topic)}image data too short: {size} bytes for '
+    if step < row_bytes:
+        raise InputError(f'{_where(topic)}image step {step} is less than a row of '
+                         f'{width}x{height} {encoding} ({row_bytes} bytes)')
+    length = size if length is None else min(int(length), size)
+    if length != step * height:
+        which = 'short' if length < step * height else 'long'
+        raise InputError(f'{_where(topic)}image data too {which}: {length} bytes for '
                          f'{width}x{height} {encoding} with step {step} (expected '
-                         f'{max(step, row_bytes) * height} bytes)')
+                         f'{step * height} bytes)')
     buf = np.frombuffer(data, dtype=np.uint8, count=step * height, offset=offset)
     rows = buf.reshape(height, step)[:, :row_bytes]
     if dtype.itemsize > 1 and step % dtype.itemsize:
@@ -162,6 +172,8 @@ class RawImage:
     step: int
     data: Any
     offset: int
+    length: int
+    """The message's count of data bytes (from ``offset``)."""
 
     @property
     def stamp_s(self) -> float:
@@ -212,7 +224,7 @@ def parse_image_cdr(data: bytes) -> RawImage:
         raise InputError(f'serialized sensor_msgs/Image cut short: {len(data) - pos} of '
                          f'{length} data bytes')
     return RawImage(sec, nanosec, frame_id, height, width, encoding, is_bigendian, step,
-                    data, pos)
+                    data, pos, length)
 
 
 def image_from_cdr(data: bytes, want: Optional[str] = None, topic: str = '',
@@ -222,7 +234,7 @@ def image_from_cdr(data: bytes, want: Optional[str] = None, topic: str = '',
     raw = parse_image_cdr(data)
     arr = image_array(raw.height, raw.width, raw.encoding, raw.is_bigendian, raw.step,
                       raw.data, raw.offset, want=want, topic=topic,
-                      expected_size=expected_size)
+                      expected_size=expected_size, length=raw.length)
     return raw, arr
 
 

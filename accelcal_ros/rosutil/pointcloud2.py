@@ -49,6 +49,10 @@ def pointcloud2_to_array(msg):
     if len(buf) < need:
         raise InputError(f'PointCloud2 data too short: {len(buf)} bytes for {width} x '
                          f'{n_rows} points of {step} bytes (row_step {row_step})')
+    if len(buf) > row_step * n_rows:   # the header does not describe the data
+        raise InputError(f'PointCloud2 data too long: {len(buf)} bytes for {width} x '
+                         f'{n_rows} points of {step} bytes (row_step {row_step}: at most '
+                         f'{row_step * n_rows})')
     if row_step == width * step:
         rows = np.frombuffer(buf, dtype=dtype, count=n_rows * width)
     else:

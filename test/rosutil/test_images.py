@@ -69,11 +69,13 @@ def test_mono16_big_endian_reads_when_allowed():
     (Image(height=2, width=2, encoding='16UC1', step=4, data=bytes(8)), "'16UC1'"),
     (Image(height=2, width=2, encoding='rgba4', step=8, data=bytes(16)), "'rgba4'.*rgb8"),
     (Image(height=2, width=2, encoding='bgr8', step=6, data=bytes(11)), 'too short'),
-    (Image(height=2, width=2, encoding='bgr8', step=5, data=bytes(12)), 'too short'),
+    (Image(height=2, width=2, encoding='bgr8', step=5, data=bytes(12)), 'step 5 is less than a row'),
+    (Image(height=2, width=2, encoding='bgr8', step=6, data=bytes(13)), 'too long: 13 bytes'),
+    (Image(height=2, width=2, encoding='bgr8', step=6, data=bytes(24)), 'too long'),
     (Image(height=0, width=2, encoding='mono8', step=2, data=b''), 'empty'),
 ])
 def test_bad_messages_raise_input_error_naming_the_problem(msg, words):
-    """Unknown encodings are named; truncated and empty data are reported."""
+    """Unknown encodings are named; truncated, over-long and empty data are reported."""
     with pytest.raises(InputError, match=words):
         image_msg_to_array(msg)
 
@@ -201,3 +203,10 @@ def test_serialized_images_are_read_as_views_and_written_in_one_piece(frame_id):
         parse_image_cdr(data[:-10])
     with pytest.raises(InputError, match='not a serialized sensor_msgs/Image'):
         parse_image_cdr(b'\x00\x01\x00\x00\x01')
+    # bytes after the message (CDR padding) are not pixels; a data field longer than
+    # step * height is refused: the header does not describe it
+    assert np.array_equal(image_from_cdr(data + bytes(3))[1], arr)
+    long = array_to_image_msg(arr, 'bgr8', Image, header)
+    long.data = bytes(long.data) + bytes(27)
+    with pytest.raises(InputError, match='too long'):
+        image_from_cdr(serialize_message(long))

@@ -55,10 +55,14 @@ def test_padded_organised_big_endian_cloud():
 
 
 def test_bad_messages_raise_clear_errors():
-    """Short data and unknown datatypes raise InputError; empty clouds are fine."""
+    """Short or over-long data and unknown datatypes raise InputError; empty clouds are fine."""
     msg = array_to_pointcloud2(_cloud(10), PointCloud2, PointField)
     msg.data = msg.data[:-5]
     with pytest.raises(InputError, match='too short'):
+        pointcloud2_to_array(msg)
+    msg = array_to_pointcloud2(_cloud(10), PointCloud2, PointField)
+    msg.data = bytes(msg.data) + bytes(77)   # more than the header describes
+    with pytest.raises(InputError, match='too long'):
         pointcloud2_to_array(msg)
     msg = array_to_pointcloud2(_cloud(2), PointCloud2, PointField)
     msg.fields[0].datatype = 42
