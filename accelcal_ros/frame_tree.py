@@ -257,7 +257,8 @@ def lidar_transform(names: FrameNames, boresight: ArrayLike,
                           np.asarray(boresight, dtype=float), np.asarray(lever_arm_m, dtype=float))
 
 
-def _frame_id_reason(value: str) -> Optional[str]:
+def frame_id_reason(value: str) -> Optional[str]:
+    """Return why ``value`` is not a valid frame id (a parameter validator), else None."""
     try:
         check_frame_id(value)
     except InputError as exc:
@@ -266,13 +267,13 @@ def _frame_id_reason(value: str) -> Optional[str]:
 
 
 def _suffix_reason(value: str) -> Optional[str]:
-    return _frame_id_reason('cam' + value)
+    return frame_id_reason('cam' + value)
 
 
 FRAME_NAME_PARAMS = (
-    ParamSpec('base_frame', 'base_link', 'root frame (REP-105)', validator=_frame_id_reason),
-    ParamSpec('imu_frame', 'imu_link', 'the accelerometer frame', validator=_frame_id_reason),
-    ParamSpec('lidar_frame', 'lidar_link', 'the LiDAR frame', validator=_frame_id_reason),
+    ParamSpec('base_frame', 'base_link', 'root frame (REP-105)', validator=frame_id_reason),
+    ParamSpec('imu_frame', 'imu_link', 'the accelerometer frame', validator=frame_id_reason),
+    ParamSpec('lidar_frame', 'lidar_link', 'the LiDAR frame', validator=frame_id_reason),
     ParamSpec('camera_frame_suffix', OPTICAL_SUFFIX, 'camera frame = camera name + this '
               '(REP-103 optical frame)', validator=_suffix_reason),
 )

@@ -58,18 +58,21 @@ def _rss_kib(pid):
 
 def test_attitude_refuses_dev_zero_and_a_fifo_as_calibration_file(graph, tmp_path):
     """
-    Start-up: one ERROR line, the node runs on (uncalibrated) and answers.
+    Start-up: one FATAL line and status 1 (it ran on uncalibrated, with an ERROR line).
 
     At run time the file is refused at once with the reason, the node keeps answering and
     its memory does not grow.
     """
     fifo = tmp_path / 'cal.yaml'
     os.mkfifo(fifo)
-    proc = graph.start('attitude', {'calibration_file': '/dev/zero'})
+    failed = graph.start('attitude', {'calibration_file': '/dev/zero'}, name='attitude_bad')
+    assert failed.wait_exit(timeout=30.0) == 1
+    lines = _lines(failed)
+    assert len(lines) == 1 and '[FATAL]' in lines[0], lines
+    assert '/dev/zero: is a character device' in lines[0], lines
+    proc = graph.start('attitude')
     assert graph.get_parameters('attitude', ['calibration_file'], timeout=30.0) == {
-        'calibration_file': '/dev/zero'}
-    errors = [line for line in _lines(proc) if '[ERROR]' in line]
-    assert len(errors) == 1 and '/dev/zero: is a character device' in errors[0], errors
+        'calibration_file': ''}
     rss = _rss_kib(proc.proc.pid)
     for path, kind in (('/dev/zero', 'character device'), (str(fifo), 'FIFO')):
         result = graph.set_parameters('attitude', {'calibration_file': path}, timeout=30.0)

@@ -29,7 +29,8 @@ valid only while the platform does not accelerate).
 
 The calibration comes from ``calibration_file`` or from the ``calibration.*`` parameters,
 both settable at run time (``ros2 param set``, or the calibration node's finish). A bad
-file or value is rejected with the reason and the last good calibration stays in use.
+file or value is rejected with the reason and the last good calibration stays in use; at
+start a bad file stops the node with the reason (it would otherwise run uncalibrated).
 A ``calibration_file`` that does not exist yet (the node started before the calibration
 was run) is a warning, given once: the node runs uncalibrated, checks every second and
 loads the file when it appears (or uses a calibration pushed in the meantime).
@@ -119,12 +120,8 @@ class AttitudeNode(Node):
             self.get_logger().warning(
                 f'calibration file {path} does not exist yet: running uncalibrated until '
                 'it appears (checked every second) or a calibration is pushed')
-        elif path:
-            try:
-                self._load_file(path)
-            except AccelcalError as exc:
-                self.get_logger().error(f'{exc}; running with the calibration.* values '
-                                        '(uncalibrated unless set)')
+        elif path:   # a bad file stops the node with the reason (the runner's FATAL line)
+            self._load_file(path)
         elif values['calibration.scale'] == [1.0, 1.0, 1.0] \
                 and values['calibration.bias'] == [0.0, 0.0, 0.0]:
             self.get_logger().warning('no calibration: set calibration_file (or run the '

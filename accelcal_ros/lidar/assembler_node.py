@@ -38,7 +38,8 @@ from collections import deque
 import threading
 import time
 
-from accelcal_ros.errors import AccelcalError
+from accelcal_ros.errors import AccelcalError, InputError
+from accelcal_ros.lidar.map_output import map_output_problem
 from accelcal_ros.lidar.params import CLOUD_ASSEMBLER_PARAMS as SPECS
 from accelcal_ros.rosutil.diagnostics import (diagnostic_status, diagnostics_publisher,
                                               publish_diagnostics)
@@ -77,6 +78,9 @@ class CloudAssemblerNode(Node):
         from accelcal_ros.lidar.boresight import load_boresight
 
         p = self.params
+        problem = map_output_problem(p['output_file'], p['map_crs'])
+        if problem:
+            raise InputError(f'output_file: {problem}')
         boresight = (load_boresight(p['boresight_file']) if p['boresight_file'] else
                      rotation_from_rpy_radians(*np.radians(p['boresight_rpy_deg'])))
         self._core = CloudAssembler(boresight, p['lever_arm_m'], p['time_field'] or None,
@@ -115,7 +119,12 @@ class CloudAssemblerNode(Node):
             self.get_logger().warning(NO_BORESIGHT)
 
     def _on_change(self, name, value):
-        if name == 'max_wait_s':
+        """Apply accepted run-time changes; raise InputError to reject one."""
+        if name == 'output_file':
+            problem = map_output_problem(value, self.params['map_crs'])
+            if problem:
+                raise InputError(problem)
+        elif name == 'max_wait_s':
             with self._lock:
                 self._core.max_wait_s = float(value)
         elif name == 'max_pose_gap_s':

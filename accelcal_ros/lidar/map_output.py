@@ -47,6 +47,16 @@ def voxel_thin(cloud: np.ndarray, voxel_m: float) -> np.ndarray:
     return cloud[np.sort(first)]
 
 
+def map_output_problem(path: str, crs: str) -> Optional[str]:
+    """Return why ``path`` cannot hold the map of a ``crs`` (empty: none) cloud, or None."""
+    from accelcal_ros.lidar.las import is_las_path
+
+    if path and is_las_path(path) and not crs:
+        return (f'{os.path.basename(path)}: LAS/LAZ needs map_crs (e.g. EPSG:32637), which is '
+                'read-only: set it at start, or write .ply or .pcd')
+    return None
+
+
 def write_map_cloud(path: str, cloud: np.ndarray, crs: str, voxel_m: float = 0.0,
                     chunk: int = 1 << 20) -> int:
     """
@@ -63,8 +73,9 @@ def write_map_cloud(path: str, cloud: np.ndarray, crs: str, voxel_m: float = 0.0
     if not is_las_path(path):
         write_cloud(path, cloud)
         return len(cloud)
-    if not crs:
-        raise InputError(f'{os.path.basename(path)}: LAS/LAZ needs map_crs (e.g. EPSG:32637)')
+    problem = map_output_problem(path, crs)
+    if problem:
+        raise InputError(problem)
     if not len(cloud):
         raise InputError('no georeferenced point yet: nothing to save')
     projection = resolve_crs(crs, 0.0, 0.0)

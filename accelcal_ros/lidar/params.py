@@ -7,7 +7,7 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 """
 from typing import Any, Dict, Optional
 
-from accelcal_ros.frame_tree import frame_name_params
+from accelcal_ros.frame_tree import frame_id_reason, frame_name_params
 from accelcal_ros.lidar.capture import CaptureSettings
 from accelcal_ros.outputs import default_output, output_path_problem, output_validator
 from accelcal_ros.paramspec import ParamSpec
@@ -27,6 +27,10 @@ CAPTURE_FIELDS = {
 
 def _cloud_output_ok(value):
     return output_path_problem(value, ('.ply', '.pcd', '.laz', '.las')) if value else None
+
+
+def _frame_or_empty_ok(value):
+    return frame_id_reason(value) if value else None
 
 
 def _rpy_ok(value):
@@ -104,7 +108,8 @@ CLOUD_ASSEMBLER_PARAMS = (
               read_only=True, unit='m'),
     ParamSpec('time_field', '', 'per-point time field (empty = time, t or timestamp)',
               read_only=True),
-    ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)'),
+    ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)',
+              validator=_frame_or_empty_ok),
     ParamSpec('output_file', '', 'cloud file written by save and at shutdown (.ply, .pcd; '
               '.laz or .las with map_crs; empty = none)',
               validator=_cloud_output_ok),

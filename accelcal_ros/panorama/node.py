@@ -122,7 +122,7 @@ class StitcherNode(Node):
             grid_step=v['grid_step'], rebuild_threshold_deg=v['rebuild_threshold_deg'],
             blend_width_deg=v['blend_width_deg'],
             channels=1 if self.encoding == 'mono8' else 3)
-        self.roi.start(self.rig, mount, self.encoding, v['frame_id'])
+        self.roi.start(self.rig, mount, self.encoding, lambda: self.params['frame_id'])
         self._sizes = [(c.width, c.height) for c in self.rig.cameras]
         self.policy = FrameSetPolicy(
             [f'{c.name} ({t})' for c, t in zip(self.rig.cameras, topics)], self.params,

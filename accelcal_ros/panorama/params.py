@@ -3,6 +3,7 @@ import math
 from typing import Any, Optional, Tuple
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.frame_tree import frame_id_reason
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
 from accelcal_ros.panorama.projection import PROJECTIONS
 from accelcal_ros.paramspec import ParamSpec
@@ -125,7 +126,8 @@ STITCHER_PARAMS = [
               read_only=True),
     ParamSpec('jpeg_quality', 80, 'JPEG quality of panorama/compressed', minimum=1,
               maximum=100),
-    ParamSpec('frame_id', 'panorama', 'frame_id of the published panorama'),
+    ParamSpec('frame_id', 'panorama', 'frame_id of the published panorama (its views: '
+              '<frame_id>_roi_<name>)', validator=frame_id_reason),
     ParamSpec('camera_info_topics', [], 'one sensor_msgs/CameraInfo topic per camera (rig '
               'order): K and D from the camera drivers instead of the rig file (R_0i and '
               'imu_to_camera still from it); empty = those of the rig file', kind='string_array',

@@ -67,8 +67,13 @@ class RoiViews:
         self.published = 0
         self.params = ParameterSet(node, ROI_PARAMS, on_change=self._on_change)
 
-    def start(self, rig, imu_to_camera, encoding='bgr8', frame_id='panorama'):
-        """Create the views of ``roi_views`` for ``rig`` and start the render thread."""
+    def start(self, rig, imu_to_camera, encoding='bgr8', frame_id=lambda: 'panorama'):
+        """
+        Create the views of ``roi_views`` for ``rig`` and start the render thread.
+
+        ``frame_id()``: the panorama's frame id when a frame is published (settable at
+        run time); a view's is ``<frame_id>_roi_<name>``.
+        """
         self.encoding = encoding
         self.frame_id = frame_id
         v = self.params.values
@@ -199,7 +204,7 @@ class RoiViews:
         try:
             with self.views.drawing(name) as (view, image):
                 k = view.camera_matrix
-                frame_id = f'{self.frame_id}_roi_{name}'
+                frame_id = f'{self.frame_id()}_roi_{name}'
                 data = image_cdr(image, self.encoding, sec, nanosec, frame_id)
         except NoSuchView:  # removed meanwhile
             return 0

@@ -171,3 +171,8 @@ def test_cloud_assembler_node_georeferences_and_saves(graph, tmp_path):
     assert len(saved) >= len(pts)
     xyz_saved = np.stack([saved['x'], saved['y'], saved['z']], axis=1)
     assert np.percentile(scene.room.surface_distance(xyz_saved), 99.9) < 0.003
+    # an output the node cannot write (LAS/LAZ without map_crs, which is read-only) is
+    # refused when set, with the reason; the last good one stays in use
+    result = graph.set_parameters('cloud_assembler', {'output_file': str(tmp_path / 'm.laz')})
+    assert not result[0].successful and 'LAS/LAZ needs map_crs' in result[0].reason
+    assert graph.call(Trigger, 'cloud_assembler/save', timeout=20.0).success

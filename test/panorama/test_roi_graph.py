@@ -42,7 +42,10 @@ def _psnr_to_truth(msg, scene, pose):
 
 @pytest.mark.graph
 def test_views_published_steered_added_and_removed(graph, tmp_path):
-    """roi/<name>/image matches the scene's view, camera_info holds K; steer/add/remove work."""
+    """roi/<name>/image matches the scene's view, camera_info holds K; steer/add/remove work.
+
+    frame_id, set at run time, renames the views' frames; a bad one is refused.
+    """
     rig = ring_rig(3, 320, 240, 275.0, 45.0, distortion=(-0.08, 0.01, 0, 0, 0))
     save_rig(tmp_path / 'rig.yaml', rig)
     scene = render.make_scene(1800, 900, seed=2)
@@ -145,6 +148,14 @@ def test_views_published_steered_added_and_removed(graph, tmp_path):
     # too many views: refused with the cap
     result = graph.set_parameters('stitcher', {'roi_views': [f'v{i}' for i in range(9)]})
     assert not result[0].successful and 'at most 8' in result[0].reason
+    # frame_id set at run time reaches the views; an empty or invalid one is refused
+    for bad in ('', 'bad frame id', '/rig'):
+        result = graph.set_parameters('stitcher', {'frame_id': bad})
+        assert not result[0].successful and 'frame id' in result[0].reason, bad
+    assert graph.set_parameters('stitcher', {'frame_id': 'rig_pano'})[0].successful
+    side.clear()
+    got = _feed_until(side, 2, feed, accept=lambda m: m.header.frame_id == 'rig_pano_roi_side')
+    assert got, [m.header.frame_id for m in side.snapshot()[0]]
 
 
 def _free_port():

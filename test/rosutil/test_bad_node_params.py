@@ -9,8 +9,9 @@ that on the installed executable).
 """
 import importlib
 import json
+import re
 
-from accelcal_ros.errors import InputError
+from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.node_params import NODE_PARAMS, node_specs
 from accelcal_ros.nodes import NODE_MODULES
 from accelcal_ros.rosutil.runner import _node_in_traceback
@@ -88,3 +89,52 @@ def test_out_of_range_start_value_is_one_input_error(exe, spec):
     assert '\n' not in message
     assert f'{spec.name}: ' in message
     assert 'below the minimum' in message or 'above the maximum' in message
+
+
+def _start_error(exe, params):
+    """
+    Construct ``exe``'s node with ``params`` given as ``-p``; return its error or None.
+
+    An :class:`AccelcalError` (InputError, FileFormatError, ...): what the runner turns into
+    one FATAL line and exit status 1.
+    """
+    args = ['test', '--ros-args']
+    for name, value in params.items():
+        args += ['-p', f'{name}:={json.dumps(value)}']
+    rclpy.init(args=args)
+    node = error = None
+    try:
+        node = _node_classes()[exe]()
+    except AccelcalError as exc:
+        error = exc
+    finally:
+        _destroy(node if node is not None else
+                 _node_in_traceback(error) if error is not None else None)
+        rclpy.shutdown()
+    return error
+
+
+@pytest.mark.parametrize('exe, params, words', [
+    ('cloud_assembler', {'frame_id': 'bad frame id'}, 'frame_id.*not a valid frame id'),
+    ('cloud_assembler', {'frame_id': '/map'}, 'leading "/"'),
+    ('cloud_assembler', {'output_file': '/tmp/accelcal_never_written.laz'},
+     'LAS/LAZ needs map_crs'),
+    ('imu_driver', {'frame_id': ''}, 'frame_id: must not be empty'),
+    ('stitcher', {'frame_id': ''}, 'frame_id.*non-empty'),
+    ('stitcher', {'frame_id': 'pano rig'}, 'frame_id.*not a valid frame id'),
+])
+def test_bad_start_strings_are_one_input_error(exe, params, words):
+    """A frame id or an output the node could never use stops it at start, with the reason."""
+    error = _start_error(exe, params)
+    assert error is not None, f'{exe} started with {params}'
+    assert '\n' not in str(error)
+    assert re.search(words, str(error)), str(error)
+
+
+def test_a_bad_calibration_file_at_start_stops_attitude(tmp_path):
+    """A calibration file that is not one stops the node (it ran uncalibrated, logging)."""
+    bad = tmp_path / 'calib.yaml'
+    bad.write_text('- not\n- a mapping\n')
+    error = _start_error('attitude', {'calibration_file': str(bad)})
+    assert error is not None and '\n' not in str(error)
+    assert str(bad) in str(error) or 'calib.yaml' in str(error), str(error)
