@@ -12,6 +12,7 @@ import os
 from typing import Any, TYPE_CHECKING, Union
 
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
+from accelcal_ros.panorama.params import MAX_PANORAMA_SIDE_PX
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
     import numpy as np
@@ -54,9 +55,9 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='horizontal extent, deg (180)')
     p.add_argument('--fov-v', type=float_in(0.0, 180.0, low_open=True), default=120.0,
                    help='vertical extent, deg (120)')
-    p.add_argument('--width', type=int_in(1, 65535), default=3600,
+    p.add_argument('--width', type=int_in(2, MAX_PANORAMA_SIDE_PX), default=3600,
                    help='panorama width, px (3600)')
-    p.add_argument('--height', type=int_in(1, 65535), default=2400,
+    p.add_argument('--height', type=int_in(2, MAX_PANORAMA_SIDE_PX), default=2400,
                    help='panorama height, px (2400)')
     p.add_argument('--projection', default='spherical', choices=('spherical', 'cylindrical'),
                    help='spherical (equal angle per pixel; default) or cylindrical')

@@ -3,7 +3,6 @@ import math
 from typing import Any, Optional, Tuple
 
 from accelcal_ros.errors import InputError
-from accelcal_ros.frame_tree import frame_id_reason
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
 from accelcal_ros.panorama.projection import PROJECTIONS
 from accelcal_ros.paramspec import ParamSpec
@@ -19,6 +18,13 @@ def _rotation_reason(values):
 
 def _even(value):
     return None if value % 2 == 0 else 'must be even'
+
+
+def _frame_id_reason(value: str) -> Optional[str]:
+    """Return why ``value`` is not a frame id, or None (frame_tree loads scipy: on use)."""
+    from accelcal_ros.frame_tree import frame_id_reason
+
+    return frame_id_reason(value)
 
 
 def _size_reason(value):
@@ -127,7 +133,7 @@ STITCHER_PARAMS = [
     ParamSpec('jpeg_quality', 80, 'JPEG quality of panorama/compressed', minimum=1,
               maximum=100),
     ParamSpec('frame_id', 'panorama', 'frame_id of the published panorama (its views: '
-              '<frame_id>_roi_<name>)', validator=frame_id_reason),
+              '<frame_id>_roi_<name>)', validator=_frame_id_reason),
     ParamSpec('camera_info_topics', [], 'one sensor_msgs/CameraInfo topic per camera (rig '
               'order): K and D from the camera drivers instead of the rig file (R_0i and '
               'imu_to_camera still from it); empty = those of the rig file', kind='string_array',
