@@ -35,7 +35,7 @@ import threading
 
 from accelcal_ros.errors import AccelcalError, InputError
 from accelcal_ros.panorama.roi_params import ROI_PARAMS
-from accelcal_ros.panorama.view import ViewPose
+from accelcal_ros.panorama.view_pose import ViewPose
 from accelcal_ros.panorama.view_set import NoSuchView, ViewSet
 from accelcal_ros.rosutil.images import image_cdr
 from accelcal_ros.rosutil.params import ParameterSet

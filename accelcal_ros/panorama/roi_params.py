@@ -1,7 +1,7 @@
 """Parameters of the levelled views the ``stitcher`` node grows (pure: checked without ROS)."""
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.params import STITCHER_PARAMS
-from accelcal_ros.panorama.view import MAX_VIEW_SIDE_PX, MIN_VIEW_SIDE_PX
+from accelcal_ros.panorama.view_pose import MAX_VIEW_SIDE_PX, MIN_VIEW_SIDE_PX
 from accelcal_ros.panorama.view_set import parse_view_entry
 from accelcal_ros.paramspec import ParamSpec
 

@@ -27,8 +27,9 @@ from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_from_rpy_radians
 from accelcal_ros.panorama import render
 from accelcal_ros.panorama.horizon_study import (PAPER_PITCH_DEG, REFERENCE_PITCH_RAD,
                                                  study_rig, tilt_errors_after_calibration)
-from accelcal_ros.panorama.view import (horizon_row, LevelledView, view_camera_matrix,
-                                        view_rotation, ViewMosaic, ViewPose)
+from accelcal_ros.panorama.view import LevelledView, ViewMosaic
+from accelcal_ros.panorama.view_pose import (horizon_row_px, view_camera_matrix,
+                                             view_rotation, ViewPose)
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -57,7 +58,7 @@ def closed_form_horizon(width: int, height: int, pose: ViewPose,
     m = view_rotation(pose.azimuth_rad, pose.elevation_rad).T @ n
     f = view_camera_matrix(width, height, pose.fov_h_rad)[0, 0]
     centre = (height - 1) / 2.0 - f * m[2] / m[1]
-    return math.degrees(math.atan(-m[0] / m[1])), centre - horizon_row(height, width, pose)
+    return math.degrees(math.atan(-m[0] / m[1])), centre - horizon_row_px(height, width, pose)
 
 
 class _Rows:
@@ -81,7 +82,8 @@ def measure_horizon(image: np.ndarray, view: LevelledView,
     The edge (the scene's sky/ground boundary, :func:`render.horizon_rows`) is searched
     3.5 deg around ``expected_row`` (default: the true horizon row); a line is fitted.
     """
-    row = view.horizon_row() if expected_row is None else expected_row
+    true_row = horizon_row_px(view.height, view.width, view.pose)
+    row = true_row if expected_row is None else expected_row
     rows = render.horizon_rows(image, _Rows(view.height, row, view.camera_matrix[0, 0]),
                                search_deg=3.5, expected_row=row)
     cols = np.nonzero(np.isfinite(rows))[0]
@@ -89,7 +91,7 @@ def measure_horizon(image: np.ndarray, view: LevelledView,
         return math.nan, math.nan, cols.size / max(1, image.shape[1])
     slope, intercept = np.polyfit(cols, rows[cols], 1)
     centre = intercept + slope * (view.width - 1) / 2.0
-    return math.degrees(math.atan(slope)), float(centre - view.horizon_row()), \
+    return math.degrees(math.atan(slope)), float(centre - true_row), \
         cols.size / len(rows)
 
 
@@ -129,7 +131,8 @@ def run(count: int = 100, quick: bool = False, json_path: Optional[str] = None,
             image = view.render(mosaic.image)
             roll_cf, offset_cf = closed_form_horizon(width, height, pose, true_att, used)
             roll_m, offset_m, found = measure_horizon(image, view,
-                                                      view.horizon_row() + offset_cf)
+                                                      horizon_row_px(height, width, pose)
+                                                      + offset_cf)
             row[name] = {'roll_deg': roll_m, 'offset_px': offset_m, 'columns': found,
                          'closed_form_roll_deg': roll_cf, 'closed_form_offset_px': offset_cf}
             cells.append(f' {roll_m:+6.3f} {offset_m:+7.2f} ({roll_cf:+6.3f} {offset_cf:+7.2f}) |')

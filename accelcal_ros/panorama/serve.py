@@ -8,11 +8,11 @@ share one mosaic of the current frame set). The page sends the pose as JSON
 reset, arrow keys to step); the server renders the view (:class:`~.view.LevelledView`),
 encodes it as JPEG (:func:`~accelcal_ros.jpeg.encode_jpeg`: libjpeg-turbo) and sends it as
 one binary message, preceded by a JSON text message with the view's state (pose, horizon
-row, covered fraction, frame number). The page acknowledges each frame once drawn; the
-server sends the next one only then, so at most one frame is in flight and a drag is
-answered by the newest pose, not by a queue of old ones; a tab is drawn at most at the
-frame rate (playback, or live the frame sets' rate; at least 25 Hz, for the drag
-latency), however fast its pose changes (why
+row, null when not in view; covered fraction, frame number). The page acknowledges each
+frame once drawn; the server sends the next one only then, so at most one frame is in
+flight and a drag is answered by the newest pose, not by a queue of old ones; a tab is
+drawn at most at the frame rate (playback, or live the frame sets' rate; at least 25 Hz,
+for the drag latency), however fast its pose changes (why
 a WebSocket and not MJPEG:
 MJPEG over HTTP has no back channel, so the pose would need a second connection, and the
 browser's MJPEG decoder gives no acknowledgement to pace frames by; see docs/roi.md
@@ -33,14 +33,17 @@ import hmac
 import ipaddress
 import json
 import math
+import os
 import secrets
+import socket
 import threading
 import time
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from urllib.parse import quote
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.jpeg import encode_jpeg
-from accelcal_ros.panorama.view import ViewPose
+from accelcal_ros.panorama.view_pose import ViewPose
 from accelcal_ros.panorama.view_set import NoSuchView, ViewSet
 import numpy as np
 
@@ -82,6 +85,21 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def page_url(host: str, port: int, token: Optional[str] = None) -> str:
+    """Return the page's URL on ``host:port`` (an IPv6 address bracketed, the token quoted)."""
+    where = f'[{host}]' if ':' in host else host
+    return f'http://{where}:{port}/' + (f'?token={quote(token, safe="")}' if token else '')
+
+
+def listen_error(host: str, port: int, exc: OSError) -> InputError:
+    """Return the one-line error of a failed bind, naming ``host:port`` and the reason."""
+    if isinstance(exc, socket.gaierror) or not isinstance(exc.errno, int) or exc.errno <= 0:
+        reason = exc.strerror or str(exc)
+    else:
+        reason = os.strerror(exc.errno)
+    return InputError(f'cannot listen on {host}:{port}: {reason}')
+
+
 class ViewServer:
     """
     The web server over a :class:`~.view_set.ViewSet` and recorded frame sets.
@@ -116,6 +134,9 @@ class ViewServer:
         self._thread: Optional[threading.Thread] = None
         self._loop: Optional[asyncio.AbstractEventLoop] = None
         self.url = ''
+        """The page's URL once listening (without the token)."""
+        self.port = 0
+        """The port listened on (``port`` 0 picks one)."""
         self.live = live
         self._live_period: Optional[float] = None
         self._last_push: Optional[float] = None
@@ -314,7 +335,7 @@ class ViewServer:
             data = json.loads(text)
             if not isinstance(data, dict):
                 raise ValueError('not an object')
-        except ValueError:
+        except (ValueError, RecursionError):  # RecursionError: '[' * 2000 nested too deeply
             await ws.send_str(json.dumps({'error': 'control messages are JSON objects'}))
             return
         if 'ack' in data:
@@ -384,25 +405,38 @@ class ViewServer:
             self.served_frames += 1
 
     # -- running --------------------------------------------------------------------------
+    async def _listen(self, host: str, port: int, handle_signals: bool = False) -> None:
+        """
+        Set the application up and listen on ``host:port``; set :attr:`url` (the bound port).
+
+        A failed bind (no such host, the port in use) raises :class:`InputError` naming
+        ``host:port``; the caller cleans :attr:`_runner` up. ``handle_signals``: SIGINT and
+        SIGTERM stop the loop (the main thread only).
+        """
+        from aiohttp import web
+
+        self._runner = web.AppRunner(self.app(), handle_signals=handle_signals)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, host, port)
+        try:
+            await site.start()
+        except OSError as exc:
+            raise listen_error(host, port, exc) from None
+        sockets = site._server.sockets  # type: ignore[union-attr]
+        self.port = int(sockets[0].getsockname()[1])
+        self.url = page_url(host, self.port)
+
     def start(self, host: str = '127.0.0.1', port: int = 0) -> str:
         """Serve in a background thread (tests, benchmarks); return the page's URL."""
         ready = threading.Event()
         errors: List[BaseException] = []
 
         def main() -> None:
-            from aiohttp import web
-
             loop = asyncio.new_event_loop()
             self._loop = loop
             asyncio.set_event_loop(loop)
             try:
-                self._runner = web.AppRunner(self.app())
-                loop.run_until_complete(self._runner.setup())
-                site = web.TCPSite(self._runner, host, port)
-                loop.run_until_complete(site.start())
-                sockets = site._server.sockets  # type: ignore[union-attr]
-                bound = sockets[0].getsockname()[1]
-                self.url = f'http://{host}:{bound}/'
+                loop.run_until_complete(self._listen(host, port))
             except BaseException as exc:  # noqa: B902 - handed to the starting thread
                 errors.append(exc)
                 ready.set()
@@ -416,6 +450,8 @@ class ViewServer:
         self._thread.start()
         ready.wait(30.0)
         if errors:
+            if isinstance(errors[0], InputError):
+                raise errors[0]
             raise InputError(f'cannot serve on {host}:{port}: {errors[0]}')
         return self.url
 
@@ -426,11 +462,51 @@ class ViewServer:
             self._thread.join(timeout=10.0)
 
 
-def serve_forever(server: ViewServer, host: str, port: int) -> None:
-    """Run the server in this thread until interrupted (``accelcal serve``)."""
+def serve_forever(server: ViewServer, host: str, port: int,
+                  announce: Callable[[str], Any] = print) -> None:
+    """
+    Run the server in this thread until interrupted (``accelcal serve``).
+
+    ``announce`` is called with the page's link (:func:`page_url`: the bound port, for
+    ``port`` 0 the one picked, and the token) once the server listens, not before; a
+    failed bind raises :class:`InputError` naming ``host:port`` and announces nothing.
+    Ctrl-C or SIGTERM stop it (cleaned up).
+    """
     from aiohttp import web
 
-    web.run_app(server.app(), host=host, port=port, print=None, handle_signals=True)
+    async def run() -> None:
+        try:
+            await server._listen(host, port, handle_signals=True)
+            announce(page_url(host, server.port, server.token))
+            while True:
+                await asyncio.sleep(3600.0)
+        finally:
+            if server._runner is not None:
+                await server._runner.cleanup()
+
+    loop = asyncio.new_event_loop()
+    asyncio.set_event_loop(loop)
+    main = loop.create_task(run())
+    try:
+        loop.run_until_complete(main)
+    except (web.GracefulExit, KeyboardInterrupt):
+        pass
+    finally:
+        _close_loop(loop, main)
+
+
+def _close_loop(loop: asyncio.AbstractEventLoop, main: 'asyncio.Task[None]') -> None:
+    """Cancel ``main`` (cleaning the server up) and any task left, then close ``loop``."""
+    for task in [main, *asyncio.all_tasks(loop)]:
+        if not task.done():
+            task.cancel()
+            try:
+                loop.run_until_complete(task)
+            except (asyncio.CancelledError, Exception):  # noqa: B902 - shutting down
+                pass
+    loop.run_until_complete(loop.shutdown_asyncgens())
+    loop.close()
+    asyncio.set_event_loop(None)
 
 
 def make_token() -> str:

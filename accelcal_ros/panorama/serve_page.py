@@ -71,7 +71,8 @@ function draw() {
   const w = img.clientWidth, h = img.clientHeight, s = w / info.width;
   overlay.width = w; overlay.height = h;
   const c = overlay.getContext('2d');
-  const y = (info.horizon_row + 0.5) * s;
+  // horizon_row is null when the horizon is not in the view: no line
+  const y = info.horizon_row === null ? NaN : (info.horizon_row + 0.5) * s;
   if (y >= 0 && y <= h) {
     c.strokeStyle = 'rgba(255,220,0,.9)'; c.setLineDash([12, 8]); c.lineWidth = 1.5;
     c.beginPath(); c.moveTo(0, y); c.lineTo(w, y); c.stroke();

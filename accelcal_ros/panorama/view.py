@@ -46,7 +46,6 @@ rotation in the cameras moves by more than ``rebuild_threshold_deg`` or the zoom
 changes. Pixels no camera sees are black; :meth:`LevelledView.covered_fraction` says
 how many are seen.
 """
-from dataclasses import dataclass
 import math
 from typing import Any, cast, Optional, Tuple
 
@@ -56,18 +55,13 @@ from accelcal_ros.panorama.lookup import LookupBuilder
 from accelcal_ros.panorama.mosaic import MosaicLayout, OUTSIDE
 from accelcal_ros.panorama.rig_projection import RigProjection, tilt_matrix
 from accelcal_ros.panorama.view_grid import CameraSources, four_channels, GridMaps
+from accelcal_ros.panorama.view_pose import (check_view_size, finite_number, focal_px,
+                                             horizon_row, view_camera_matrix, view_rotation,
+                                             ViewPose)
 from accelcal_ros.panorama.view_warp import CameraPlanes, DEFAULT_PLANE_SCALE, WarpPlan
 import numpy as np
 from numpy.typing import ArrayLike
 
-MAX_VIEW_SIDE_PX = 4096
-"""Largest width or height of a view (a 4096 x 4096 view's lookup is 128 MB)."""
-MIN_VIEW_SIDE_PX = 16
-"""Smallest width or height of a view."""
-MAX_FOV_H_DEG = 170.0
-"""Widest horizontal field of view accepted (a pinhole reaches infinity at 180 deg)."""
-MIN_FOV_H_DEG = 0.5
-"""Narrowest horizontal field of view accepted (an electronic zoom of ~100x)."""
 DEFAULT_VIEW_GAP_PX = 64
 """Black gap between the images of a views-only mosaic (:class:`ViewMosaic`)."""
 RENDERERS = ('grid', 'warp', 'map')
@@ -78,101 +72,20 @@ STILL_FRAMES_BEFORE_MAP = 3
 """A ``'grid'`` or ``'warp'`` view still for this many frames builds its lookup and remaps
 from then on."""
 COVERAGE_SAMPLES = 96
-"""Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`."""
+"""Samples along the longer side of a view for :meth:`LevelledView.covered_fraction`
+(the other side as far apart, at least one)."""
 
 
-def _finite(name: str, value: Any) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f'view {name} must be a number, got {value!r}') from None
-    if not math.isfinite(number):
-        raise InputError(f'view {name} must be finite, got {value!r}; keeping the last view')
-    return number
-
-
-@dataclass(frozen=True)
-class ViewPose:
+def coverage_samples(size: int, step: float) -> np.ndarray:
     """
-    Where a view looks and its zoom: azimuth, elevation, horizontal field of view (rad).
+    Return the pixel indices sampled along a side of ``size`` pixels, about ``step`` apart.
 
-    ``azimuth_rad`` (0 = the panorama's centre column, positive right; wrapped into
-    [-pi, pi)), ``elevation_rad`` in [-pi/2, pi/2] (positive up), ``fov_h_rad`` in
-    [0.5, 170] deg. Out-of-range or non-finite values raise :class:`InputError`.
+    The centres of ``round(size / step)`` equal parts, at least one (a side shorter than
+    ``step`` is sampled at its middle) and at most ``size``.
     """
-
-    azimuth_rad: float = 0.0
-    elevation_rad: float = 0.0
-    fov_h_rad: float = math.radians(60.0)
-
-    def __post_init__(self) -> None:
-        """Check and normalise the values (one clear reason per bad value)."""
-        az = _finite('azimuth', self.azimuth_rad)
-        el = _finite('elevation', self.elevation_rad)
-        fov = _finite('fov_h', self.fov_h_rad)
-        if not -math.pi / 2 - 1e-12 <= el <= math.pi / 2 + 1e-12:
-            raise InputError(f'view elevation must be within +-90 deg, got '
-                             f'{math.degrees(el):.6g} deg')
-        if not math.radians(MIN_FOV_H_DEG) - 1e-12 <= fov <= math.radians(MAX_FOV_H_DEG) + 1e-12:
-            raise InputError(f'view fov_h must be in [{MIN_FOV_H_DEG:g}, {MAX_FOV_H_DEG:g}] deg '
-                             f'for a rectilinear view (0 and 180 are impossible), got '
-                             f'{math.degrees(fov):.6g} deg')
-        az = (az + math.pi) % (2.0 * math.pi) - math.pi
-        object.__setattr__(self, 'azimuth_rad', az)
-        object.__setattr__(self, 'elevation_rad', min(max(el, -math.pi / 2), math.pi / 2))
-        object.__setattr__(self, 'fov_h_rad', fov)
-
-    @classmethod
-    def from_degrees(cls, azimuth_deg: float, elevation_deg: float,
-                     fov_h_deg: float) -> 'ViewPose':
-        """Return the pose from degrees (checked as the constructor)."""
-        return cls(math.radians(_finite('azimuth', azimuth_deg)),
-                   math.radians(_finite('elevation', elevation_deg)),
-                   math.radians(_finite('fov_h', fov_h_deg)))
-
-    def degrees(self) -> Tuple[float, float, float]:
-        """Return ``(azimuth, elevation, fov_h)`` in degrees."""
-        return (math.degrees(self.azimuth_rad), math.degrees(self.elevation_rad),
-                math.degrees(self.fov_h_rad))
-
-
-def check_view_size(width: Any, height: Any) -> Tuple[int, int]:
-    """Return ``(width, height)`` as ints, or raise :class:`InputError` beyond the caps."""
-    out = []
-    for name, value in (('width', width), ('height', height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) and not (
-                isinstance(value, float) and value.is_integer()):
-            raise InputError(f'view {name} must be an integer, got {value!r}')
-        if not MIN_VIEW_SIDE_PX <= int(value) <= MAX_VIEW_SIDE_PX:
-            raise InputError(f'view {name} must be in [{MIN_VIEW_SIDE_PX}, '
-                             f'{MAX_VIEW_SIDE_PX}] px, got {value}')
-        out.append(int(value))
-    return out[0], out[1]
-
-
-def focal_px(width: int, fov_h_rad: float) -> float:
-    """Return the view's focal length ``(W/2) / tan(fov_h/2)`` in pixels."""
-    return (width / 2.0) / math.tan(fov_h_rad / 2.0)
-
-
-def view_camera_matrix(width: int, height: int, fov_h_rad: float) -> np.ndarray:
-    """Return the view's ``K`` (3x3): ``fx = fy = (W/2)/tan(fov_h/2)``, ``(W-1)/2, (H-1)/2``."""
-    f = focal_px(width, fov_h_rad)
-    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0],
-                     [0.0, 0.0, 1.0]])
-
-
-def view_rotation(azimuth_rad: float, elevation_rad: float) -> np.ndarray:
-    """Return ``R_PV``: view optical frame -> panorama frame ``P`` (columns x_V, y_V, z_V)."""
-    ca, sa = math.cos(azimuth_rad), math.sin(azimuth_rad)
-    ce, se = math.cos(elevation_rad), math.sin(elevation_rad)
-    # columns x_V = [ca, 0, -sa], y_V = z_V x x_V, z_V = [ce sa, -se, ce ca]
-    return np.array([[ca, se * sa, ce * sa], [0.0, ce, -se], [-sa, se * ca, ce * ca]])
-
-
-def horizon_row(height: int, width: int, pose: ViewPose) -> float:
-    """Row of the true horizon in a levelled view: ``c_y + f tan(elevation)`` (every column)."""
-    return (height - 1) / 2.0 + focal_px(width, pose.fov_h_rad) * math.tan(pose.elevation_rad)
+    count = min(size, max(1, int(round(size / step))))
+    centres = (np.arange(count) + 0.5) * (size / count) - 0.5
+    return np.unique(np.clip(np.round(centres), 0, size - 1)).astype(np.intp)
 
 
 class _ViewGrid:
@@ -398,8 +311,8 @@ class LevelledView:
         """Return the view's ``K`` (3x3, pixels) for its current zoom."""
         return view_camera_matrix(self.width, self.height, self.pose.fov_h_rad)
 
-    def horizon_row(self) -> float:
-        """Row of the true horizon in this view (every column: the view is levelled)."""
+    def horizon_row(self) -> Optional[float]:
+        """Row of the true horizon in this view (every column), None when not in view."""
         return horizon_row(self.height, self.width, self.pose)
 
     def set_pose(self, pose: ViewPose) -> None:
@@ -410,7 +323,7 @@ class LevelledView:
 
     def set_attitude(self, roll: float, pitch: float) -> None:
         """Set the rig's roll and pitch (radians, REP-103); NaN/inf raise, keeping the last."""
-        roll, pitch = _finite('roll', roll), _finite('pitch', pitch)
+        roll, pitch = finite_number('roll', roll), finite_number('pitch', pitch)
         self.attitude = (roll, pitch)
 
     def _rotation(self) -> Tuple[np.ndarray, float]:
@@ -579,13 +492,13 @@ class LevelledView:
 
         A pixel counts when its point lies within the chosen camera's frame to half a pixel
         beyond its outermost pixel centres; counted at :data:`COVERAGE_SAMPLES` pixels along
-        the longer side, off the pose's ``'grid'`` map if any (:meth:`.GridMaps.seen`).
+        the longer side and as far apart along the other (at least one: a 4096 x 16 view),
+        off the pose's ``'grid'`` map if any (:meth:`.GridMaps.seen`).
         """
         self.update()
         if self._covered is None:
             step = max(1.0, max(self.width, self.height) / COVERAGE_SAMPLES)
-            u, v = (np.unique(np.clip(np.round(np.arange(step / 2 - 0.5, n - 0.5, step)), 0,
-                                      n - 1)).astype(np.intp) for n in (self.width, self.height))
+            u, v = (coverage_samples(n, step) for n in (self.width, self.height))
             if self._grid is not None:
                 seen = self._grid.seen(v, u)
             else:

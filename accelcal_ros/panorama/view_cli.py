@@ -16,8 +16,8 @@ from typing import Any, cast, Dict, Optional, Tuple
 
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
 from accelcal_ros.errors import InputError
-from accelcal_ros.panorama.view import (MAX_FOV_H_DEG, MAX_VIEW_SIDE_PX, MIN_FOV_H_DEG,
-                                        MIN_VIEW_SIDE_PX, ViewPose)
+from accelcal_ros.panorama.view_pose import (MAX_FOV_H_DEG, MAX_VIEW_SIDE_PX, MIN_FOV_H_DEG,
+                                             MIN_VIEW_SIDE_PX, ViewPose)
 import numpy as np
 
 
@@ -168,10 +168,11 @@ def _view(args: Any) -> int:
     write_image(args.output, view.render(mosaic.image))
     az, el, fov = view.pose.degrees()
     k = view.camera_matrix
+    row = view.horizon_row()
+    horizon = 'horizon not in view' if row is None else f'horizon at row {row:.2f}'
     print(f'wrote {args.output}: {view.width}x{view.height} view at azimuth {az:g}, '
           f'elevation {el:g} deg, fov_h {fov:g} deg (fx = fy = {k[0, 0]:.2f} px); '
-          f'{100.0 * view.covered_fraction():.1f} % covered; horizon at row '
-          f'{view.horizon_row():.2f}')
+          f'{100.0 * view.covered_fraction():.1f} % covered; {horizon}')
     return 0
 
 
@@ -337,11 +338,14 @@ def _serve(args: Any) -> int:
     imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
     views = ViewSet(rig, imu_to_camera, 3, args.max_views, args.width, args.height)
     server = ViewServer(views, frames, fps, token, args.quality)
-    host = f'[{args.host}]' if ':' in args.host else args.host
-    where = f'http://{host}:{args.port}/' + (f'?token={token}' if token else '')
-    print(f'serving {len(frames)} frame set(s) at {fps:.1f} fps on {where} (up to '
-          f'{args.max_views} tabs of {args.width}x{args.height}; Ctrl-C stops)', flush=True)
-    serve_forever(server, args.host, args.port)
+
+    def announce(url: str) -> None:
+        """Say where the page is, once listening (the bound port; the token quoted)."""
+        print(f'serving {len(frames)} frame set(s) at {fps:.1f} fps on {url} (up to '
+              f'{args.max_views} tabs of {args.width}x{args.height}; Ctrl-C stops)',
+              flush=True)
+
+    serve_forever(server, args.host, args.port, announce)
     return 0
 
 

@@ -29,9 +29,9 @@ import threading
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import InputError
-from accelcal_ros.panorama.view import (check_view_size, LevelledView, ViewMosaic,
-                                        ViewPose)
+from accelcal_ros.panorama.view import LevelledView, ViewMosaic
 from accelcal_ros.panorama.view_grid import CameraSources
+from accelcal_ros.panorama.view_pose import check_view_size, ViewPose
 from accelcal_ros.panorama.view_warp import CameraPlanes
 import numpy as np
 from numpy.typing import ArrayLike

@@ -56,6 +56,23 @@ async def _frame(ws):
     return None, None
 
 
+async def _strict_frame(ws):
+    """Return the next frame's header (acknowledged) or error, as strict JSON (no NaN)."""
+    def not_json(name):
+        raise AssertionError(f'{name} in a header: not JSON')
+
+    info = None
+    async for msg in ws:
+        if msg.type == aiohttp.WSMsgType.TEXT:
+            info = json.loads(msg.data, parse_constant=not_json)
+            if 'error' in info:
+                return info
+        elif msg.type == aiohttp.WSMsgType.BINARY:
+            await ws.send_str(json.dumps({'ack': info['sent']}))
+            return info
+    return None
+
+
 def _psnr(image, scene, pose):
     truth = render_view_truth(scene, 320, 240, pose)
     covered = image.max(axis=2) > 8
@@ -106,6 +123,79 @@ def test_each_socket_is_its_own_view_and_steers_it(scene):
                     break
                 await asyncio.sleep(0.05)
             assert server.views.names() == []
+
+    try:
+        asyncio.run(run())
+    finally:
+        server.stop()
+
+
+def test_bad_control_messages_get_one_clear_reply_and_the_tab_keeps_its_view(scene, caplog):
+    """
+    Nesting too deep, a boolean or an integer past a float as an angle: an error, the tab kept.
+
+    ``'[' * 2000 + ']' * 2000`` (under the 4 KiB cap) raised RecursionError in json.loads:
+    a traceback on the server and the tab dropped; ``{"az": true}`` turned the view to 1 deg.
+    """
+    import logging
+
+    server = _server(scene)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            ws = await session.ws_connect(server.url + 'ws')
+            await _frame(ws)
+            await ws.send_str(json.dumps({'az': 10}))
+            while (await _strict_frame(ws))['az'] != pytest.approx(10):
+                pass
+            name = server.views.names()[0]
+            for text, reason in [
+                    ('[' * 2000 + ']' * 2000, 'control messages are JSON objects'),
+                    ('{"ack": 0, "x": ' + '[' * 1900 + ']' * 1900 + '}',
+                     'control messages are JSON objects'),
+                    ('{"az": true}', 'view azimuth must be a number'),
+                    ('{"el": false, "fov": 30}', 'view elevation must be a number'),
+                    ('{"fov": 1' + '0' * 400 + '}', 'view fov_h must be finite')]:
+                await ws.send_str(text)
+                error = await _strict_frame(ws)
+                assert error is not None and reason in error.get('error', ''), (text[:20], error)
+                assert server.views.pose(name).degrees() == pytest.approx((10.0, 0.0, 60.0))
+            await ws.send_str(json.dumps({'az': -15}))   # the same tab still answers
+            while (await _strict_frame(ws))['az'] != pytest.approx(-15):
+                pass
+            assert server.views.names() == [name]
+            await ws.close()
+
+    with caplog.at_level(logging.ERROR):
+        try:
+            asyncio.run(run())
+        finally:
+            server.stop()
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR], caplog.text
+
+
+def test_headers_are_json_a_thin_view_covered_and_no_horizon_out_of_view(scene):
+    """
+    A 4096 x 16 view: a finite covered fraction; looking straight up: ``horizon_row`` null.
+
+    The header said ``"covered": NaN`` (not JSON: the short side had no sample) and, at
+    elevation 90 deg, ``"horizon_row": 1.357e+19``.
+    """
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    sets = [(render.render_camera_views(scene, rig, ROLL, PITCH), ROLL, PITCH, 0.0)]
+    server = ViewServer(ViewSet(rig, max_views=2, width=4096, height=16), sets, fps=20.0)
+    server.start('127.0.0.1', 0)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            ws = await session.ws_connect(server.url + 'ws')
+            info = await _strict_frame(ws)
+            assert 0.5 < info['covered'] <= 1.0 and info['horizon_row'] == 7.5
+            await ws.send_str(json.dumps({'el': 90}))
+            while info['el'] != pytest.approx(90):
+                info = await _strict_frame(ws)
+            assert info['horizon_row'] is None and info['covered'] == 0.0
+            await ws.close()
 
     try:
         asyncio.run(run())

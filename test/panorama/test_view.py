@@ -4,11 +4,11 @@ import math
 from accelcal_ros.camera.rig import ring_rig
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rot_x, rot_z
-from accelcal_ros.panorama import render
+from accelcal_ros.panorama import render, view as view_module
 from accelcal_ros.panorama.mosaic import OUTSIDE
-from accelcal_ros.panorama.view import (horizon_row, LevelledView, MAX_VIEW_SIDE_PX,
-                                        view_camera_matrix, view_rotation, ViewMosaic,
-                                        ViewPose)
+from accelcal_ros.panorama.view import LevelledView, ViewMosaic
+from accelcal_ros.panorama.view_pose import (horizon_row, MAX_VIEW_SIDE_PX, view_camera_matrix,
+                                             view_rotation, ViewPose)
 import numpy as np
 import pytest
 
@@ -233,7 +233,9 @@ def test_covered_fraction_off_the_grid_map_agrees_with_the_lens(scene):
 @pytest.mark.parametrize('values, reason', [
     ((0.0, 0.0, 0.0), 'fov_h'), ((0.0, 0.0, 180.0), 'fov_h'), ((0.0, 0.0, -10.0), 'fov_h'),
     ((math.nan, 0.0, 60.0), 'finite'), ((0.0, math.inf, 60.0), 'finite'),
-    ((0.0, 95.0, 60.0), 'elevation'), (('x', 0.0, 60.0), 'number')])
+    ((0.0, 95.0, 60.0), 'elevation'), (('x', 0.0, 60.0), 'number'),
+    ((True, 0.0, 60.0), 'azimuth must be a number'), ((0.0, False, 60.0), 'elevation must be'),
+    ((0.0, 0.0, np.True_), 'fov_h must be a number'), ((10 ** 400, 0.0, 60.0), 'finite')])
 def test_bad_pose_is_one_clear_reason_and_the_view_keeps_its_state(values, reason):
     """Refuse fov <= 0 or >= 180, NaN or infinite direction: InputError; the last pose stays."""
     rig = _rig()
@@ -246,6 +248,70 @@ def test_bad_pose_is_one_clear_reason_and_the_view_keeps_its_state(values, reaso
     with pytest.raises(InputError, match='finite'):
         view.set_attitude(math.nan, 0.0)
     assert view.attitude == (0.1, 0.1)
+
+
+@pytest.mark.parametrize('value', [True, False, np.True_])
+def test_a_boolean_is_not_an_angle(value):
+    """``True`` is no 1 rad or 1 deg (a JSON ``true`` turned a browser's view by 1 deg)."""
+    with pytest.raises(InputError, match='azimuth must be a number'):
+        ViewPose(value, 0.0, 1.0)
+    with pytest.raises(InputError, match='elevation must be a number'):
+        ViewPose.from_degrees(0.0, value, 60.0)
+    rig = _rig()
+    view = LevelledView(rig, ViewMosaic(rig).layout, 320, 240)
+    view.set_attitude(0.1, 0.1)
+    with pytest.raises(InputError, match='pitch must be a number'):
+        view.set_attitude(0.0, value)
+    assert view.attitude == (0.1, 0.1)
+
+
+def test_horizon_row_is_none_when_not_in_view():
+    """Within the image (pixel edges -0.5..H-0.5) the row; above, below or at +-90 deg None."""
+    f = 200 / math.tan(math.radians(30.0))   # a 400x300 view of fov_h 60
+    edge = math.degrees(math.atan(150.0 / f))  # the horizon on the top/bottom pixel edge
+    for el in (0.0, 10.0, -10.0, edge - 1e-6, -edge + 1e-6):
+        row = horizon_row(300, 400, ViewPose.from_degrees(0.0, el, 60.0))
+        assert row == pytest.approx(149.5 + f * math.tan(math.radians(el)))
+        assert -0.5 <= row <= 299.5
+    for el in (edge + 1e-3, -edge - 1e-3, 45.0, -60.0, 89.999, 90.0, -90.0):
+        assert horizon_row(300, 400, ViewPose.from_degrees(0.0, el, 60.0)) is None, el
+    rig = _rig()
+    view = LevelledView(rig, ViewMosaic(rig).layout, 400, 300,
+                        ViewPose.from_degrees(0.0, 90.0, 60.0))
+    assert view.horizon_row() is None
+    view.set_pose(ViewPose.from_degrees(0.0, 0.0, 60.0))
+    assert view.horizon_row() == 149.5
+
+
+@pytest.mark.filterwarnings('error')
+@pytest.mark.parametrize('renderer', ['grid', 'warp'])
+@pytest.mark.parametrize('size, pose', [((4096, 16), (60.0, 5.0, 170.0)),
+                                        ((16, 4096), (20.0, 10.0, 0.5))])
+def test_covered_fraction_of_a_very_wide_or_tall_view(scene, monkeypatch, renderer, size,
+                                                      pose):
+    """
+    A 4096 x 16 or 16 x 4096 view: a finite fraction, that of every pixel, no warning.
+
+    The short side was sampled as far apart as the long one (42.7 px): no sample at all,
+    so ``nan`` and numpy's "Mean of empty slice" (``accelcal serve`` then sent
+    ``"covered": NaN``, not JSON).
+    """
+    rig = _rig()
+    mosaic = ViewMosaic(rig)
+    for i, image in enumerate(render.render_camera_views(scene, rig, 0.05, 0.2)):
+        mosaic.set_image(i, image)
+    fractions = []
+    for samples in (view_module.COVERAGE_SAMPLES, max(size)):   # then every pixel
+        monkeypatch.setattr(view_module, 'COVERAGE_SAMPLES', samples)
+        view = LevelledView(rig, mosaic.layout, *size, ViewPose.from_degrees(*pose),
+                            renderer=renderer)
+        view.set_attitude(0.05, 0.2)
+        if renderer == 'grid':
+            view.render(mosaic.image, 1)   # read off the grid map; 'warp': the lens
+        fractions.append(view.covered_fraction())
+    sampled, every_pixel = fractions
+    assert 0.1 < every_pixel < 0.9, fractions   # partly covered: edges are crossed
+    assert math.isfinite(sampled) and abs(sampled - every_pixel) < 0.02, fractions
 
 
 @pytest.mark.parametrize('size', [(0, 240), (320, MAX_VIEW_SIDE_PX + 1), (8, 8), (320.5, 240),

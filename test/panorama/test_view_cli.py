@@ -1,5 +1,13 @@
-"""``accelcal view`` (images and bag, with a path) and ``accelcal study roi`` end to end."""
+"""``accelcal view`` (images and bag, with a path), ``serve`` and ``study roi`` end to end."""
 import math
+import select
+import signal
+import socket
+import subprocess
+import sys
+import urllib.error
+import urllib.parse
+import urllib.request
 
 from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
@@ -62,6 +70,77 @@ def test_view_writes_the_scenes_pinhole_view(setup, capsys):
     covered = cv2.erode((image.max(axis=2) > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
     assert covered.mean() > 0.5
     assert render.psnr(image, truth, covered.astype(bool)) > 33.0
+
+
+def test_view_looking_straight_up_says_the_horizon_is_not_in_view(setup, tmp_path, capsys):
+    """Elevation 90 deg: "horizon not in view" (it said "horizon at row 1.8e19")."""
+    folder, paths, _, _ = setup
+    assert main(['view', '--rig', str(folder / 'rig.yaml'), '--roll', '-3', '--pitch', '8',
+                 '--elevation', '90', '--width', '64', '--height', '48', '-o',
+                 str(tmp_path / 'up.png'), *paths]) == 0
+    said = capsys.readouterr().out
+    assert said.endswith('horizon not in view\n') and 'horizon at row' not in said
+
+
+def _serve_args(folder, paths, *extra):
+    return ['serve', '--rig', str(folder / 'rig.yaml'), '--roll', '-3', '--pitch', '8',
+            '--width', '64', '--height', '48', *extra, *paths]
+
+
+def test_serve_says_the_port_it_listens_on_and_a_link_that_opens(setup):
+    """
+    ``--port 0``: the port picked, said once listening; the token percent-encoded.
+
+    It said ``http://127.0.0.1:0/``, and ``--token 'a+b&c#d é'`` as is: the link's token
+    ended at the ``&`` (the rest a fragment), so the page answered 401.
+    """
+    pytest.importorskip('aiohttp', reason='aiohttp is not installed')
+    folder, paths, _, _ = setup
+    run = 'import sys\nfrom accelcal_ros.cli import main\nsys.exit(main(sys.argv[1:]))\n'
+    proc = subprocess.Popen([sys.executable, '-c', run, *_serve_args(
+        folder, paths, '--port', '0', '--token', 'a+b&c#d é')], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        assert select.select([proc.stdout], [], [], 120.0)[0], 'nothing said in 120 s'
+        line = proc.stdout.readline()
+        assert line.startswith('serving 1 frame set(s)'), line
+        url = line.split(' on ', 1)[1].split(' ', 1)[0]
+        parts = urllib.parse.urlsplit(url)
+        assert parts.hostname == '127.0.0.1' and parts.port not in (None, 0), url
+        assert not parts.fragment and \
+            urllib.parse.parse_qs(parts.query) == {'token': ['a+b&c#d é']}, url
+        with urllib.request.urlopen(url, timeout=30) as page:
+            assert page.status == 200 and 'WebSocket' in page.read().decode()
+        with pytest.raises(urllib.error.HTTPError, match='401'):
+            urllib.request.urlopen(url.split('?')[0], timeout=30)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and 'Traceback' not in err, err
+
+
+@pytest.mark.parametrize('host', ['127.0.0.1', 'nonexistent.invalid'])
+def test_serve_that_cannot_listen_is_one_line_naming_the_address(setup, capsys, host):
+    """
+    A port in use or a host that does not resolve: one error naming host:port, status 1.
+
+    It said "serving ... on http://host:port/" first (before binding), then only
+    "Name or service not known" or asyncio's "error while attempting to bind".
+    """
+    pytest.importorskip('aiohttp', reason='aiohttp is not installed')
+    folder, paths, _, _ = setup
+    with socket.socket() as busy:
+        busy.bind(('127.0.0.1', 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        code = main(_serve_args(folder, paths, '--host', host, '--port', str(port)))
+    out, err = capsys.readouterr()
+    assert code == 1 and 'serving' not in out, (out, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        f'accelcal: error: cannot listen on {host}:{port}: '), err
+    if host == '127.0.0.1':
+        assert lines[0].endswith('Address already in use'), err
 
 
 def test_view_over_a_bag_follows_the_path(setup, tmp_path, capsys):
