@@ -18,7 +18,7 @@ import argparse
 import importlib
 import os
 import sys
-from typing import Any, List, NoReturn, Optional, Sequence
+from typing import Any, List, NoReturn, Optional, Sequence, Tuple
 
 from accelcal_ros.errors import AccelcalError, InputError
 
@@ -38,10 +38,23 @@ FEATURE_CLI_MODULES = (
 OUTPUT_DESTS = frozenset({'output', 'plot', 'json', 'out', 'out_dir', 'output_dir'})
 
 
+#: output arguments (``dest``) that always name a file, never a folder: a plot, a JSON
+#: table (also any ``*_plot``). A command names its other file-only outputs with
+#: ``set_defaults(file_outputs=frozenset({...}))``; ``-o`` is a folder for some commands
+#: (a rosbag2, a folder of frames), so it is file-only only where a command says so
+FILE_OUTPUT_DESTS = frozenset({'plot', 'json'})
+
+
 def is_output_dest(dest: str) -> bool:
     """Return whether an argument (by its ``dest``) names something the command writes."""
     return (dest in OUTPUT_DESTS or dest.startswith(('output_', 'out_'))
             or dest.endswith(('_output', '_out', '_plot')))
+
+
+def is_file_output(dest: str, args: argparse.Namespace) -> bool:
+    """Return whether the output argument ``dest`` of a parsed command is never a folder."""
+    return (dest in FILE_OUTPUT_DESTS or dest.endswith('_plot')
+            or dest in getattr(args, 'file_outputs', ()))
 
 
 EPILOG = ('Errors are printed as one line and exit with status 1 (2 for a bad command '
@@ -163,24 +176,44 @@ def _holds_input(path: 'str | os.PathLike[str]') -> bool:
     return os.path.exists(path)
 
 
-def output_paths(args: argparse.Namespace) -> List[str]:
-    """Return the output arguments of a parsed command that are set."""
-    return [os.fspath(v) for dest, v in vars(args).items()
+def output_arguments(args: argparse.Namespace) -> List[Tuple[str, str]]:
+    """Return ``(dest, path)`` of the output arguments of a parsed command that are set."""
+    return [(dest, os.fspath(v)) for dest, v in vars(args).items()
             if is_output_dest(dest) and isinstance(v, (str, os.PathLike)) and v]
 
 
-def run_command(args: argparse.Namespace) -> int:
-    """Run a parsed command: inputs guarded, outputs checked before any work."""
+def output_paths(args: argparse.Namespace) -> List[str]:
+    """Return the output arguments of a parsed command that are set."""
+    return [path for _, path in output_arguments(args)]
+
+
+def output_problem(dest: str, path: str, args: argparse.Namespace) -> Optional[str]:
+    """
+    Return why the output ``path`` (argument ``dest``) cannot be written, or None.
+
+    A device, a FIFO or a socket is never an output; an existing directory is refused
+    for a file-only output (:func:`is_file_output`) and left to the command otherwise
+    (a rosbag2 or a folder of frames is a directory).
+    """
     from accelcal_ros.filecheck import output_path_problem
+
+    if os.path.isdir(path):
+        return output_path_problem(path) if is_file_output(dest, args) else None
+    problem = output_path_problem(path)
+    return f'{problem}; give a file path' if problem else None
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run a parsed command: inputs guarded, every output checked before any work."""
     from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
 
     inputs = input_paths(args)
     outputs = output_paths(args)
-    for k, output in enumerate(outputs):
+    for k, (dest, output) in enumerate(output_arguments(args)):
         refuse_overwriting_inputs(output, inputs)
-        problem = None if os.path.isdir(output) else output_path_problem(output)
-        if problem:  # /dev/null, a FIFO: refused before any work, not after it
-            raise InputError(f'output {problem}; give a file path')
+        problem = output_problem(dest, output, args)
+        if problem:  # a directory, /dev/null, a FIFO: refused before any work, not after it
+            raise InputError(f'output {problem}')
         if os.path.realpath(output) in (os.path.realpath(o) for o in outputs[:k]):
             raise InputError(f'{output} is given for two outputs; the second would overwrite '
                              'the first: give each output its own path')

@@ -10,6 +10,8 @@ directory, and a parent that is a directory or can be made one.
 import os
 from typing import Optional, Sequence
 
+from accelcal_ros.errors import InputError
+
 DEFAULT_OUTPUT_DIR = os.path.join('~', '.ros', 'accelcal')
 """Default directory of every node output (``~`` expanded where written)."""
 
@@ -50,6 +52,20 @@ def output_path_problem(value: str, suffixes: Sequence[str] = (),
     if parent and not os.access(parent, os.W_OK | os.X_OK):
         return f'{value!r}: cannot create anything in {parent} (permission denied)'
     return None
+
+
+def check_output_path(value: str, option: str, suffixes: Sequence[str] = (),
+                      directory: bool = False) -> None:
+    """
+    Raise :class:`InputError` naming ``option`` when ``value`` cannot be that output.
+
+    For a command's output options, checked before any work (see
+    :func:`output_path_problem`): e.g. ``-o plot.txt`` of a PNG writer is refused with
+    the extensions it can write.
+    """
+    problem = output_path_problem(value, suffixes, directory)
+    if problem:
+        raise InputError(f'{option} {problem}')
 
 
 def output_validator(suffixes: Sequence[str] = (), directory: bool = False):

@@ -116,7 +116,7 @@ def read_numeric_csv(path: PathLike, required: Sequence[str], optional: Sequence
     :data:`accelcal_ros.schema.CSV_FORMATS`, listed in docs/formats.md). Every row must
     have as many fields as the header and only numbers; a short last row (truncated file)
     is reported with its line number. With ``finite=True`` a NaN or infinity is an error;
-    ``increasing='t'`` requires column ``t`` to increase strictly.
+    ``increasing='t'`` requires column ``t`` to be finite and increase strictly.
     """
     import numpy as np
 
@@ -169,9 +169,12 @@ def _numeric_rows(path, reader, required, optional, finite, increasing):
             raise FileFormatError(path, f'non-numeric value in {shown!r}', line) from None
         if finite and not all(math.isfinite(v) for v in values):
             raise FileFormatError(path, f'NaN or infinite value in {",".join(row)!r}', line)
-        if k_increasing is not None and rows:
+        if k_increasing is not None:
             k = k_increasing
-            if not values[k] > rows[-1][k]:
+            if not math.isfinite(values[k]):
+                raise FileFormatError(path, f'column {increasing} has a NaN or infinite value '
+                                      f'({row[index[k]].strip()!r})', line)
+            if rows and not values[k] > rows[-1][k]:
                 raise FileFormatError(path, f'column {increasing} must increase strictly '
                                       f'({values[k]!r} after {rows[-1][k]!r})', line)
         rows.append(values)

@@ -187,6 +187,43 @@ def test_two_outputs_with_one_path_are_refused(tmp_path, capsys):
     assert 'two outputs' in err and len(err.strip().splitlines()) == 1 and not out.exists()
 
 
+@pytest.mark.parametrize('argv', [
+    ['study', 'roi', '--json', '{dir}'],
+    ['study', 'p2p', '--json', '{dir}'],
+    ['study', 'motion', '--drive-out', '{tmp}/drive.csv', '--odometry-out', '{dir}'],
+    ['boresight', '{tmp}/positions', '-o', '{tmp}/bs.yaml', '--plot', '{dir}'],
+    ['calibrate', '{tmp}/rec.csv', '-o', '{tmp}/c.yaml', '--plot', '{dir}'],
+    ['georeference', '--cloud', 'a.pcd', '--poses', 'p.csv', '--boresight', 'b.yaml',
+     '-o', '{dir}'],
+])
+def test_a_directory_for_a_file_output_is_refused_before_the_command_runs(tmp_path, argv):
+    """A plot, a JSON table, a study's CSV, -o of a file writer: a folder there is refused."""
+    from accelcal_ros.errors import InputError
+
+    folder = tmp_path / 'DIR'
+    folder.mkdir()
+    args = build_parser().parse_args([a.format(dir=folder, tmp=tmp_path) for a in argv])
+    ran = []
+    args.handler = ran.append
+    with pytest.raises(InputError, match='DIR is a directory; give a file name'):
+        cli.run_command(args)
+    assert not ran and os.listdir(folder) == []
+
+
+@pytest.mark.parametrize('argv', [['sample-data', '{dir}'],
+                                  ['apply', 'in.mcap', '--calibration', 'c.yaml', '-o', '{dir}'],
+                                  ['study', 'horizon', '--out', '{dir}']])
+def test_a_folder_output_may_be_an_existing_directory(tmp_path, argv):
+    """Outputs that are folders (a data set, a rosbag2, frames) are left to the command."""
+    folder = tmp_path / 'DIR'
+    folder.mkdir()
+    args = build_parser().parse_args([a.format(dir=folder) for a in argv])
+    ran = []
+    args.handler = ran.append
+    cli.run_command(args)
+    assert len(ran) == 1
+
+
 def test_p2p_solve_input_file_with_bytes_that_are_not_utf8(tmp_path, capsys):
     """A line of bytes that are not UTF-8 gets its error; the following lines are solved."""
     import json

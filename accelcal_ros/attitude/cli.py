@@ -39,7 +39,7 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--panorama-every', type=nonnegative_int, default=10, metavar='N',
                    help='panorama horizon through the drive: stitch every N-th frame of a '
                    '25 fps video with each estimate (default 10; 0: skip)')
-    p.set_defaults(handler=_study)
+    p.set_defaults(handler=_study, file_outputs=frozenset({'drive_out', 'odometry_out'}))
 
 
 def _study(args):

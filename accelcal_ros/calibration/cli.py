@@ -14,11 +14,15 @@ Offline commands of the calibration feature (recordings ``t,ax,ay,az`` in s and 
 * ``accelcal study calibration``: the Monte Carlo accuracy study and paper A's worked
   example.
 """
+import argparse
 import sys
-from typing import Any
+from typing import Any, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.cli_args import float_in, nonnegative_int, positive_int
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
+
+if TYPE_CHECKING:  # (numpy: imported where a command runs)
+    import numpy as np
 
 
 def register(subparsers: Any, study_subparsers: Any) -> None:
@@ -42,7 +46,7 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--window-s', type=float_in(0.0, 600.0, low_open=True), default=0.3,
                    help='moving-variance window in s (default 0.3)')
     p.add_argument('--plot', help='also write the calibration plot (PNG) here')
-    p.set_defaults(handler=_calibrate)
+    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}))
 
     p = subparsers.add_parser('apply', help='write calibrated samples of a recording')
     p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
@@ -80,12 +84,12 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='flag samples whose |f| departs from 1 g by more (default 0.05)')
     p.add_argument('--every', type=positive_int, default=1, help='print every N-th sample')
     p.add_argument('-o', '--output', help='write CSV here instead of printing')
-    p.set_defaults(handler=_attitude)
+    p.set_defaults(handler=_attitude, file_outputs=frozenset({'output'}))
 
     p = subparsers.add_parser('plot-calibration', help='plot a calibration file (PNG)')
     p.add_argument('calibration', help='calibration YAML written by calibrate/finish')
     p.add_argument('-o', '--output', required=True, help='PNG to write')
-    p.set_defaults(handler=_plot)
+    p.set_defaults(handler=_plot, file_outputs=frozenset({'output'}))
 
     p = study_subparsers.add_parser('calibration', help='Monte Carlo accuracy of the field '
                                     'calibration vs number of positions; paper A example')
@@ -95,21 +99,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.set_defaults(handler=_study)
 
 
-def _read_recording(path):
-    """Return (t, accel in g); NaN samples are kept (the calibration skips them)."""
-    from accelcal_ros.errors import FileFormatError
-    from accelcal_ros.schema import RECORDING_CSV
-    from accelcal_ros.textformats import read_numeric_csv
-    import numpy as np
-
-    columns = read_numeric_csv(path, RECORDING_CSV.required, RECORDING_CSV.optional)
-    t = columns['t']
-    if t.size == 0:
-        raise FileFormatError(path, 'recording has a header but no samples', 2)
-    if not np.all(np.isfinite(t)):
-        raise FileFormatError(path, 'column t has NaN or infinite times')
-    accel = np.stack([columns['ax'], columns['ay'], columns['az']], axis=1)
-    return t, accel / STANDARD_GRAVITY
+PLOT_SUFFIXES = ('.png',)
+"""What the calibration plot is written as (PNG, whatever the name says)."""
 
 
 def _add_bag_arguments(p):
@@ -133,10 +124,8 @@ def _read_recording_of(args):
     from accelcal_ros.recording.cli_support import open_bag, warn
 
     if not is_bag(args.recording):
-        if args.topic:
-            from accelcal_ros.errors import InputError
-            raise InputError(f'--topic applies to bags; {args.recording} is a CSV recording')
-        return _read_recording(args.recording)
+        t, accel_g, _ = _read_csv_recording(args)
+        return t, accel_g
     from accelcal_ros.recording.streams import read_imu
 
     with open_bag(args.recording, args.stamp) as bag:
@@ -145,6 +134,53 @@ def _read_recording_of(args):
     print(f'{args.recording}: {imu.topic}, {len(imu.t)} samples over {imu.t[-1]:.1f} s; '
           f'times in s from its first sample at {imu.epoch_ns / 1e9:.6f} s', file=sys.stderr)
     return imu.t, imu.accel / STANDARD_GRAVITY
+
+
+CsvRecording = Tuple['np.ndarray', 'np.ndarray', Optional['np.ndarray']]
+"""``(t s, accel g, gyro rad/s or None)`` of a CSV recording."""
+
+
+def _read_csv_recording(args: argparse.Namespace) -> CsvRecording:
+    """
+    Return ``(t s, accel g, gyro rad/s or None)`` of a command's CSV recording.
+
+    :func:`accelcal_ros.sensor.recording.read_recording` with NaN samples kept (the
+    calibration skips them); ``--topic`` is for bags only.
+    """
+    from accelcal_ros.sensor.recording import read_recording
+
+    if args.topic:
+        from accelcal_ros.errors import InputError
+        raise InputError(f'--topic applies to bags; {args.recording} is a CSV recording')
+    recording = read_recording(args.recording, finite=False)
+    return recording.t, recording.accel / STANDARD_GRAVITY, recording.gyro
+
+
+def _check_apply_options(args: argparse.Namespace) -> None:
+    """
+    Refuse an ``apply`` output its input cannot give, and a bad ``--corrected-topic``.
+
+    A CSV recording is written as CSV (a bag-like ``-o`` would get CSV text under a bag's
+    name); ``--corrected-topic`` names a topic of a bag output and must be a valid ROS
+    topic name (a leading ``/`` is added). Checked before anything is read.
+    """
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.recording.bag import full_topic_name, is_bag
+    from accelcal_ros.recording.cli_support import is_bag_output
+
+    bag_output = is_bag_output(args.output)
+    if bag_output and not is_bag(args.recording):
+        raise InputError(f'-o {args.output}: {args.recording} is a CSV recording, written as '
+                         'CSV: give -o NAME.csv (a bag output needs a bag input)')
+    if args.corrected_topic is None:
+        return
+    if not bag_output:
+        raise InputError(f'--corrected-topic applies to a bag output; -o {args.output} is a '
+                         'CSV')
+    if not args.corrected_topic:
+        raise InputError('--corrected-topic is empty: give a topic name, or leave the option '
+                         'out to replace the input topic')
+    args.corrected_topic = full_topic_name(args.corrected_topic, '--corrected-topic')
 
 
 def _writes_bag(args):
@@ -173,7 +209,7 @@ def _apply_to_bag(args, model):
             raise InputError(f'{args.recording} is a {"ROS 1" if bag.is_ros1 else "rosbag2"} '
                              'bag: write the same kind (-o NAME.bag for ROS 1, a directory for '
                              'rosbag2)')
-        out_topic = '/' + (args.corrected_topic or topic).lstrip('/')
+        out_topic = args.corrected_topic or topic
         topics = bag.topics()
         corrected = 0
         with BagWriter(args.output, fmt) as writer:
@@ -203,8 +239,11 @@ def _apply_to_bag(args, model):
 def _calibrate(args):
     from accelcal_ros.calibration.session import Calibrator, CalibratorConfig
     from accelcal_ros.errors import CalibrationError
+    from accelcal_ros.outputs import check_output_path
     from accelcal_ros.sensor.calibration_file import save_calibration
 
+    if args.plot:
+        check_output_path(args.plot, '--plot', PLOT_SUFFIXES)
     t, accel_g = _read_recording_of(args)
     config = CalibratorConfig(model=args.model, min_separation_deg=args.min_separation_deg,
                               still_threshold_g=args.still_threshold_g,
@@ -260,6 +299,7 @@ def _apply(args):
     from accelcal_ros.sensor.calibration_file import load_sensor_model
     from accelcal_ros.sensor.recording import save_recording
 
+    _check_apply_options(args)
     model = load_sensor_model(args.calibration)
     if _writes_bag(args):
         return _apply_to_bag(args, model)
@@ -329,7 +369,6 @@ def _attitude(args):
 def _read_attitude_input(args):
     """Return ``(t, accel g, gyro rad/s or None)`` of a CSV (gx,gy,gz optional) or a bag."""
     from accelcal_ros.recording.bag import is_bag
-    import numpy as np
 
     if is_bag(args.recording):
         from accelcal_ros.recording.cli_support import open_bag, warn
@@ -339,24 +378,14 @@ def _read_attitude_input(args):
             imu = read_imu(bag, args.topic)
         warn(imu.warnings)
         return imu.t, imu.accel / STANDARD_GRAVITY, imu.gyro
-    t, accel = _read_recording_of(args)
-    from accelcal_ros.schema import RECORDING_CSV
-    from accelcal_ros.textformats import read_numeric_csv
-
-    columns = read_numeric_csv(args.recording, RECORDING_CSV.required, RECORDING_CSV.optional)
-    present = [c for c in ('gx', 'gy', 'gz') if c in columns]
-    if not present:
-        return t, accel, None
-    if len(present) != 3:
-        from accelcal_ros.errors import FileFormatError
-        raise FileFormatError(args.recording, f'gyro columns {present}: give all of gx,gy,gz '
-                              '(rad/s) or none', 1)
-    return t, accel, np.stack([columns['gx'], columns['gy'], columns['gz']], axis=1)
+    return _read_csv_recording(args)
 
 
 def _plot(args):
     from accelcal_ros.calibration.plot import plot_calibration_file
+    from accelcal_ros.outputs import check_output_path
 
+    check_output_path(args.output, '-o', PLOT_SUFFIXES)
     plot_calibration_file(args.output, args.calibration)
     print(f'wrote {args.output}')
     return 0

@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction,
     p.add_argument('--skip-bad-files', action='store_true',
                    help='drop positions whose files cannot be read instead of failing')
     p.add_argument('--plot', metavar='PNG', help='also draw the per-position errors')
-    p.set_defaults(handler=_boresight)
+    p.set_defaults(handler=_boresight, file_outputs=frozenset({'output'}))
 
     g = subparsers.add_parser(
         'georeference', help='place LiDAR points in the navigation frame or a map CRS (UTM)',
@@ -79,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction,
     from accelcal_ros.lidar.geo_cli import add_arguments as add_geodetic_arguments
 
     add_geodetic_arguments(g)
-    g.set_defaults(handler=_georeference)
+    g.set_defaults(handler=_georeference, file_outputs=frozenset({'output'}))
 
     e = subparsers.add_parser(
         'error-budget', help='theoretical point error, paper B eq. (1)',
@@ -207,9 +207,12 @@ def _boresight(args: argparse.Namespace) -> int:
     from accelcal_ros.frames import rotation_from_rpy_radians
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)
+    from accelcal_ros.outputs import check_output_path
     from accelcal_ros.recording.bag import is_bag
     import numpy as np
 
+    if args.plot:
+        check_output_path(args.plot, '--plot', ('.png',))
     prior = None
     if args.prior_rpy_deg is not None:
         prior = rotation_from_rpy_radians(*np.radians(args.prior_rpy_deg))
@@ -238,6 +241,7 @@ def _georeference(args: argparse.Namespace) -> int:
     from accelcal_ros.lidar import geo_cli
 
     geo_cli.check_output(args.output, geo_cli.wants_map(args))
+    geo_cli.refuse_geodetic_options(args)
     if geo_cli.wants_map(args):
         from accelcal_ros.lidar.boresight import load_boresight
 

@@ -223,6 +223,29 @@ def check_output(path: Optional[str], geodetic: bool) -> None:
                          'or --navsat) for its CRS; local poses give .ply or .pcd')
 
 
+#: options that only a geodetic trajectory uses (``dest``: option)
+GEODETIC_ONLY_OPTIONS = {'crs': '--crs', 'imu': '--imu'}
+
+
+def refuse_geodetic_options(args: argparse.Namespace) -> None:
+    """
+    Refuse ``--crs``/``--imu`` without a geodetic trajectory: they would be ignored.
+
+    Local poses (``--poses``, ``--odom``) give points in their own navigation frame, which
+    has no map projection; ``--imu`` is the orientation that goes with ``--navsat``.
+    """
+    if wants_map(args):
+        return
+    given = [option for dest, option in GEODETIC_ONLY_OPTIONS.items()
+             if getattr(args, dest, None) is not None]
+    if given:
+        names = ' and '.join(given)
+        raise InputError(f'{names} {"applies" if len(given) == 1 else "apply"} only to a '
+                         'geodetic trajectory (--trajectory or --navsat); --poses/--odom give '
+                         'points in their local navigation frame, which has no map CRS: drop '
+                         f'{names} or give a geodetic trajectory')
+
+
 def add_study(study_subparsers: Any) -> None:
     """Add ``accelcal study georeference`` (ground truth of the UTM path)."""
     from accelcal_ros.cli_args import float_in

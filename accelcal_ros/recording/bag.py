@@ -18,6 +18,7 @@ of the wrong type or empty: the message lists the topics there are).
 from dataclasses import dataclass
 import os
 from pathlib import Path
+import re
 import sqlite3
 import struct
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Type
@@ -73,6 +74,51 @@ def normalize_type(msgtype: str) -> str:
 def normalize_topic(topic: str) -> str:
     """Return the topic with exactly one leading slash (bags store absolute names)."""
     return '/' + topic.strip().lstrip('/')
+
+
+MAX_TOPIC_NAME_LENGTH = 247
+"""Longest full topic name ROS 2 accepts (rmw: ``RMW_TOPIC_MAX_NAME_LENGTH``, 255 - 8)."""
+_TOPIC_TOKEN = re.compile(r'[A-Za-z0-9_]+')
+
+
+def topic_name_problem(name: str) -> Optional[str]:
+    """
+    Return why ``name`` is not a valid full (absolute) ROS 2 topic name, or None.
+
+    The rules of rmw's ``validate_full_topic_name``: a leading ``/``, tokens of ASCII
+    letters, digits and ``_`` separated by single slashes, no token starting with a
+    digit, no trailing ``/``, at most :data:`MAX_TOPIC_NAME_LENGTH` characters.
+    """
+    if not name.startswith('/'):
+        return 'it must start with /'
+    if name.endswith('/'):
+        return 'it must not end with /'
+    tokens = name[1:].split('/')
+    if not all(tokens):
+        return 'it must not contain repeated /'
+    if not all(_TOPIC_TOKEN.fullmatch(token) for token in tokens):
+        return 'only letters, digits, _ and / are allowed'
+    if any(token[0].isdigit() for token in tokens):
+        return 'a name token must not start with a digit'
+    if len(name) > MAX_TOPIC_NAME_LENGTH:
+        return f'it has {len(name)} characters, more than {MAX_TOPIC_NAME_LENGTH}'
+    return None
+
+
+def full_topic_name(text: str, option: str) -> str:
+    """
+    Return the topic name an option gives, with a leading ``/`` added; InputError if invalid.
+
+    Bags store absolute names, so ``imu/corrected`` is ``/imu/corrected``; an empty name
+    or one ROS 2 refuses (:func:`topic_name_problem`) is one line naming ``option``.
+    """
+    if not text:
+        raise InputError(f'{option} is empty: give a topic name (e.g. /imu/corrected)')
+    name = text if text.startswith('/') else '/' + text
+    problem = topic_name_problem(name)
+    if problem:
+        raise InputError(f'{option} {text!r} is not a valid ROS topic name: {problem}')
+    return name
 
 
 def is_bag(path: 'os.PathLike[str] | str') -> bool:

@@ -128,3 +128,61 @@ def test_nan_and_saturated_samples_in_a_recording_are_skipped(tmp_path, recordin
     assert main(['calibrate', str(noisy), '-o', str(out)]) == 0
     assert 'samples rejected' in capsys.readouterr().out
     np.testing.assert_allclose(load_sensor_model(out).bias, sim.truth.bias, atol=2e-3)
+
+
+@pytest.mark.parametrize('order', ['reversed', 'constant'])
+def test_times_that_do_not_increase_are_refused_with_their_line(tmp_path, recording, capsys,
+                                                                order):
+    """Reversed rows or every t = 0: calibrate and attitude refuse them, writing nothing."""
+    path, sim, t, raw = recording
+    bad = tmp_path / 'bad.csv'
+    save_recording(bad, t[::-1] if order == 'reversed' else np.zeros_like(t), raw * G)
+    calib, att = tmp_path / 'calib.yaml', tmp_path / 'att.csv'
+    for argv in (['calibrate', str(bad), '-o', str(calib)],
+                 ['attitude', str(bad), '-o', str(att)]):
+        assert main(argv) == 1
+        errors = [line for line in capsys.readouterr().err.splitlines() if 'error' in line]
+        assert len(errors) == 1 and f'{bad}:3: column t must increase strictly' in errors[0]
+    assert not calib.exists() and not att.exists()
+
+
+def test_a_directory_for_a_file_output_is_refused_before_any_work(tmp_path, recording,
+                                                                  capsys):
+    """`calibrate -o c.yaml --plot DIR`, `-o DIR`: refused up front; c.yaml never written."""
+    path, *_ = recording
+    folder = tmp_path / 'DIR'
+    folder.mkdir()
+    calib = tmp_path / 'c.yaml'
+    for argv in (['calibrate', str(path), '-o', str(calib), '--plot', str(folder)],
+                 ['calibrate', str(path), '-o', str(folder)],
+                 ['attitude', str(path), '-o', str(folder)],
+                 ['plot-calibration', str(calib), '-o', str(folder)]):
+        assert main(argv) == 1
+        out, err = capsys.readouterr()
+        assert err.count('\n') == 1 and 'is a directory' in err and out == ''  # nothing ran
+    assert not calib.exists() and os.listdir(folder) == []
+
+
+def test_outputs_it_cannot_write_under_their_name_are_refused(tmp_path, recording, capsys):
+    """A plot is a PNG; a CSV recording is applied into a CSV, never under a bag's name."""
+    path, *_ = recording
+    calib = tmp_path / 'calib.yaml'
+    assert main(['calibrate', str(path), '-o', str(calib)]) == 0
+    capsys.readouterr()
+    plot, other = tmp_path / 'p.txt', tmp_path / 'c2.yaml'
+    for argv in (['plot-calibration', str(calib), '-o', str(plot)],
+                 ['calibrate', str(path), '-o', str(other), '--plot', str(plot)]):
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and "p.txt' must end with .png" in err
+    assert not plot.exists() and not other.exists()
+    for name in ('ap.mcap', 'ap.db3', 'ap.bag', 'ap_dir'):
+        assert main(['apply', str(path), '--calibration', str(calib), '-o',
+                     str(tmp_path / name)]) == 1
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and 'CSV recording' in err and 'NAME.csv' in err
+        assert not (tmp_path / name).exists()
+    out = tmp_path / 'ap.csv'
+    assert main(['apply', str(path), '--calibration', str(calib), '--corrected-topic', '/x',
+                 '-o', str(out)]) == 1
+    assert 'applies to a bag output' in capsys.readouterr().err and not out.exists()

@@ -201,3 +201,20 @@ def test_sample_files_run_the_readme_commands(tmp_path, monkeypatch, capsys):
     assert first.header.parse_crs().to_epsg() == second.header.parse_crs().to_epsg() == 32637
     assert 0 < len(second.x) <= len(first.x)
     assert 'NO_FIX dropped' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('extra', [['--crs', 'EPSG:32637'], ['--crs', 'garbage'],
+                                   ['--imu', '/imu/data']])
+def test_geodetic_options_with_local_poses_are_refused(tmp_path, capsys, boresight_file,
+                                                       extra):
+    """--crs (or --imu) with --poses would be ignored: one line naming it, nothing written."""
+    write_pcd(tmp_path / 'scan.pcd', make_cloud(np.ones((3, 3)), time=np.zeros(3)))
+    write_text_atomic(tmp_path / 'poses.csv', 't,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n'
+                                              '1,1,0,0,0,0,0,1\n')
+    out = tmp_path / 'o.pcd'
+    assert main(['georeference', '--cloud', str(tmp_path / 'scan.pcd'), '--poses',
+                 str(tmp_path / 'poses.csv'), '--boresight', str(boresight_file), *extra,
+                 '-o', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and extra[0] in err and 'geodetic trajectory' in err
+    assert not out.exists()

@@ -69,6 +69,39 @@ def test_apply_writes_bag_with_calibrated_topic(recording, fmt, tmp_path):
                                    atol=1e-9)
 
 
+@pytest.mark.parametrize('name, reason', [('bad topic!', 'only letters, digits'),
+                                          ('', 'is empty'), ('/imu//cal', 'repeated /'),
+                                          ('imu/', 'end with /'), ('/imu/9x', 'digit'),
+                                          ('/' + 'a' * 247, 'more than 247')])
+def test_apply_refuses_a_bad_corrected_topic_and_writes_nothing(recording, tmp_path, capsys,
+                                                                name, reason):
+    """--corrected-topic is a ROS topic name: a bad or empty one is one line, no bag."""
+    out = tmp_path / 'out'
+    assert main(['apply', str(recording['bags']['mcap']), '--calibration',
+                 str(recording['yaml_csv']), '--corrected-topic', name, '-o', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and '--corrected-topic' in err and reason in err
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_topic_name_rules_are_those_of_ros2():
+    """topic_name_problem agrees with rclpy's validate_full_topic_name (when rclpy is here)."""
+    from accelcal_ros.recording.bag import full_topic_name, topic_name_problem
+
+    validate = pytest.importorskip('rclpy.validate_full_topic_name').validate_full_topic_name
+    names = ['/imu', '/imu/data_raw', '/_x', '/a__b', '/A1/b2', '/', '//imu', '/imu/', '/1a',
+             '/a/2', '/a b', '/a!', '/~/x', '/{node}', '/\u00e9', 'imu', '/a-b', '/a.b',
+             '/' + 'a' * 246, '/' + 'a' * 247]
+    for name in names:
+        try:
+            validate(name)
+            valid = True
+        except Exception:  # noqa: B902 - rclpy's InvalidTopicNameException
+            valid = False
+        assert (topic_name_problem(name) is None) == valid, name
+    assert full_topic_name('imu/calibrated', '--corrected-topic') == '/imu/calibrated'
+
+
 def test_apply_refuses_other_bag_family(recording, tmp_path, capsys):
     """A ROS 1 bag is written as ROS 1: a rosbag2 output is refused, nothing written."""
     out = tmp_path / 'out_dir'

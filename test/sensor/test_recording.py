@@ -57,3 +57,35 @@ def test_missing_file(tmp_path):
     """A missing recording is a clear error."""
     with pytest.raises(FileFormatError, match='not found'):
         load_recording(tmp_path / 'nope.csv')
+
+
+@pytest.mark.parametrize('finite', [True, False])
+@pytest.mark.parametrize('text, line', [
+    ('t,ax,ay,az\n0.02,0,0,9.8\n0.01,0,0,9.8\n0,0,0,9.8\n', 3),      # reversed rows
+    ('t,ax,ay,az\n0,0,0,9.8\n0,0,0,9.8\n0,0,0,9.8\n', 3),            # every t = 0
+    ('t,ax,ay,az,gx,gy,gz\n0,0,0,9.8,0,0,0\n1,0,0,9.8,0,0,0\n0.5,0,0,9.8,0,0,0\n', 4),
+    ('t,ax,ay,az\nnan,0,0,9.8\n0.01,0,0,9.8\n', 2),                  # a NaN time
+])
+def test_times_that_do_not_increase_are_refused_at_their_line(tmp_path, text, line, finite):
+    """read_recording (calibrate/apply/attitude, NaN samples kept or not) refuses bad t."""
+    from accelcal_ros.sensor.recording import read_recording
+
+    path = tmp_path / 'rec.csv'
+    path.write_text(text)
+    with pytest.raises(FileFormatError) as info:
+        read_recording(path, finite=finite)
+    message = str(info.value)
+    assert info.value.line == line and ('column t' in message or 'NaN' in message)
+
+
+def test_read_recording_keeps_nan_samples_and_gyro(tmp_path):
+    """finite=False keeps a NaN sample (calibrate skips it); gyro columns come all or none."""
+    from accelcal_ros.sensor.recording import read_recording
+
+    path = tmp_path / 'rec.csv'
+    path.write_text('t,ax,ay,az,gx,gy,gz\n0,nan,0,9.8,0.1,0,0\n0.01,0,0,9.8,0,0,0.2\n')
+    recording = read_recording(path, finite=False)
+    assert np.isnan(recording.accel[0, 0]) and recording.gyro[1, 2] == 0.2
+    path.write_text('t,ax,ay,az,gx\n0,0,0,9.8,0\n')
+    with pytest.raises(FileFormatError, match='give all of gx,gy,gz'):
+        read_recording(path)
