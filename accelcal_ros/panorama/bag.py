@@ -31,6 +31,8 @@ if TYPE_CHECKING:  # pragma: no cover - annotations only
     from accelcal_ros.panorama.stitch import Stitcher
 
 VIDEO_SUFFIXES = {'.mp4': 'mp4v', '.avi': 'MJPG', '.mkv': 'mp4v'}
+IMAGE_SUFFIXES = ('.png', '.jpg', '.jpeg', '.tif', '.tiff', '.bmp', '.webp', '.gif', '.ppm')
+"""Suffixes of one image (or a format OpenCV does not write as video): not a frame folder."""
 
 
 @dataclass
@@ -53,6 +55,10 @@ class FrameSink:
         self._writer: Any = None  # cv2.VideoWriter once the first frame gives the size
         self.count = 0
         if self.codec is None:
+            if suffix in IMAGE_SUFFIXES:   # a folder named x.png is not what was asked for
+                raise InputError(f'{self.path}: a recording gives many frames: write a video '
+                                 f'({", ".join(VIDEO_SUFFIXES)}) or a folder of PNG frames '
+                                 '(a name without an image suffix)')
             if os.path.exists(self.path) and os.listdir(self.path):
                 raise InputError(f'{self.path} exists and is not empty; choose a new folder')
             os.makedirs(self.path, exist_ok=True)

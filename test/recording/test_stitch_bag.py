@@ -90,3 +90,8 @@ def test_stitch_bag_video_and_bad_topics(recording, tmp_path, capsys):
                  '--attitude', '/attitude', '-o', str(bad)]) != 0
     assert '1 --images topic(s) for a rig of 3 cameras' in capsys.readouterr().err
     assert not bad.exists()
+    for name in ('pano.png', 'pano.gif'):   # one image's name: refused, no folder made
+        assert main(['stitch', str(bag), '--rig', str(root / 'rig.yaml'), '--images', *TOPICS,
+                     '--attitude', '/attitude', '-o', str(tmp_path / name)]) != 0
+        assert 'a recording gives many frames' in capsys.readouterr().err
+        assert not (tmp_path / name).exists()
