@@ -117,6 +117,22 @@ async def tab(url, seconds, moving, index, warmup=0.0):
     return count
 
 
+def frame_sets(rig, fps, noise):
+    """Return the 25 played frame sets: the scene shifted 2 px a set, or noise; attitude moving."""
+    rng = np.random.default_rng(1)
+    base = render.render_camera_views(render.make_scene(3600, 1800, seed=3), rig, 0.0,
+                                      REFERENCE_PITCH_RAD)
+    frames = []
+    for k in range(25):
+        if noise:
+            images = [rng.integers(0, 256, (c.height, c.width, 3), dtype=np.uint8)
+                      for c in rig.cameras]
+        else:
+            images = [np.roll(image, 2 * k, axis=1) for image in base]
+        frames.append((images, 0.02 * math.sin(k / 4), REFERENCE_PITCH_RAD, k / fps))
+    return frames
+
+
 def main():
     """Run the benchmark and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -136,17 +152,7 @@ def main():
     args = parser.parse_args()
     cv2.setNumThreads(args.threads)
     rig = study_rig(640, 480)
-    rng = np.random.default_rng(1)
-    base = render.render_camera_views(render.make_scene(3600, 1800, seed=3), rig, 0.0,
-                                      REFERENCE_PITCH_RAD)
-    frames = []
-    for k in range(25):
-        if args.noise:
-            images = [rng.integers(0, 256, (c.height, c.width, 3), dtype=np.uint8)
-                      for c in rig.cameras]
-        else:
-            images = [np.roll(image, 2 * k, axis=1) for image in base]
-        frames.append((images, 0.02 * math.sin(k / 4), REFERENCE_PITCH_RAD, k / args.fps))
+    frames = frame_sets(rig, args.fps, args.noise)
     print(f'serve benchmark: 5 cameras 640x480 ({"noise" if args.noise else "scene"}) played '
           f'at {args.fps:g} fps, views {args.width}x{args.height} JPEG q80, {args.seconds:g} '
           f's per row, cv2 {cv2.__version__}, {os.cpu_count()} CPUs')
