@@ -72,19 +72,9 @@ def test_the_table_is_not_empty():
 @pytest.mark.parametrize('exe, spec', CASES, ids=[f'{e}-{s.name}' for e, s in CASES])
 def test_out_of_range_start_value_is_one_input_error(exe, spec):
     """The error names the parameter and says which bound it breaks."""
-    node_class = _node_classes()[exe]
     value = _out_of_range(spec)
-    rclpy.init(args=['test', '--ros-args', '-p', f'{spec.name}:={json.dumps(value)}'])
-    node = error = None
-    try:
-        node = node_class()
-    except InputError as exc:
-        error = exc
-    finally:
-        _destroy(node if node is not None else
-                 _node_in_traceback(error) if error is not None else None)
-        rclpy.shutdown()
-    assert error is not None, f'{exe} started with {spec.name}:={value}'
+    error = _start_error(exe, {spec.name: value})
+    assert isinstance(error, InputError), f'{exe} started with {spec.name}:={value}: {error}'
     message = str(error)
     assert '\n' not in message
     assert f'{spec.name}: ' in message
