@@ -182,11 +182,6 @@ def output_arguments(args: argparse.Namespace) -> List[Tuple[str, str]]:
             if is_output_dest(dest) and isinstance(v, (str, os.PathLike)) and v]
 
 
-def output_paths(args: argparse.Namespace) -> List[str]:
-    """Return the output arguments of a parsed command that are set."""
-    return [path for _, path in output_arguments(args)]
-
-
 def output_problem(dest: str, path: str, args: argparse.Namespace) -> Optional[str]:
     """
     Return why the output ``path`` (argument ``dest``) cannot be written, or None.
@@ -208,8 +203,9 @@ def run_command(args: argparse.Namespace) -> int:
     from accelcal_ros.fileio import guard_inputs, refuse_overwriting_inputs
 
     inputs = input_paths(args)
-    outputs = output_paths(args)
-    for k, (dest, output) in enumerate(output_arguments(args)):
+    arguments = output_arguments(args)
+    outputs = [path for _, path in arguments]
+    for k, (dest, output) in enumerate(arguments):
         refuse_overwriting_inputs(output, inputs)
         problem = output_problem(dest, output, args)
         if problem:  # a directory, /dev/null, a FIFO: refused before any work, not after it

@@ -14,6 +14,8 @@ from accelcal_ros.errors import InputError
 
 DEFAULT_OUTPUT_DIR = os.path.join('~', '.ros', 'accelcal')
 """Default directory of every node output (``~`` expanded where written)."""
+PNG_SUFFIXES = ('.png',)
+"""What a plot is written as (PNG, whatever the name says): its outputs must say so."""
 
 
 def default_output(name: str) -> str:

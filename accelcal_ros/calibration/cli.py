@@ -99,10 +99,6 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.set_defaults(handler=_study)
 
 
-PLOT_SUFFIXES = ('.png',)
-"""What the calibration plot is written as (PNG, whatever the name says)."""
-
-
 def _add_bag_arguments(p):
     """Bag options of calibrate/apply/attitude (a CSV recording ignores none of them)."""
     from accelcal_ros.recording.cli_support import add_stamp_argument
@@ -239,11 +235,11 @@ def _apply_to_bag(args, model):
 def _calibrate(args):
     from accelcal_ros.calibration.session import Calibrator, CalibratorConfig
     from accelcal_ros.errors import CalibrationError
-    from accelcal_ros.outputs import check_output_path
+    from accelcal_ros.outputs import check_output_path, PNG_SUFFIXES
     from accelcal_ros.sensor.calibration_file import save_calibration
 
     if args.plot:
-        check_output_path(args.plot, '--plot', PLOT_SUFFIXES)
+        check_output_path(args.plot, '--plot', PNG_SUFFIXES)
     t, accel_g = _read_recording_of(args)
     config = CalibratorConfig(model=args.model, min_separation_deg=args.min_separation_deg,
                               still_threshold_g=args.still_threshold_g,
@@ -383,9 +379,9 @@ def _read_attitude_input(args):
 
 def _plot(args):
     from accelcal_ros.calibration.plot import plot_calibration_file
-    from accelcal_ros.outputs import check_output_path
+    from accelcal_ros.outputs import check_output_path, PNG_SUFFIXES
 
-    check_output_path(args.output, '-o', PLOT_SUFFIXES)
+    check_output_path(args.output, '-o', PNG_SUFFIXES)
     plot_calibration_file(args.output, args.calibration)
     print(f'wrote {args.output}')
     return 0

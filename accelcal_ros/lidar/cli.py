@@ -207,12 +207,12 @@ def _boresight(args: argparse.Namespace) -> int:
     from accelcal_ros.frames import rotation_from_rpy_radians
     from accelcal_ros.lidar.calibrate_dir import (calibrate_directory, plot_errors,
                                                   report_lines, write_result)
-    from accelcal_ros.outputs import check_output_path
+    from accelcal_ros.outputs import check_output_path, PNG_SUFFIXES
     from accelcal_ros.recording.bag import is_bag
     import numpy as np
 
     if args.plot:
-        check_output_path(args.plot, '--plot', ('.png',))
+        check_output_path(args.plot, '--plot', PNG_SUFFIXES)
     prior = None
     if args.prior_rpy_deg is not None:
         prior = rotation_from_rpy_radians(*np.radians(args.prior_rpy_deg))
