@@ -12,21 +12,23 @@ PAGE = r"""<!DOCTYPE html>
  #msg { position: absolute; left: 8px; bottom: 6px; color: #f88; }
 </style></head>
 <body tabindex="0">
-<div id="stage"><img id="view" alt="view" draggable="false"><canvas id="overlay"></canvas>
+<div id="stage"><canvas id="view" width="1" height="1"></canvas><canvas id="overlay"></canvas>
 <div id="hud">connecting...</div></div><div id="msg"></div>
 <script>
 "use strict";
 const RESET = {az: 0, el: 0, fov: 60};
-const img = document.getElementById('view'), overlay = document.getElementById('overlay');
+const picture = document.getElementById('view'), overlay = document.getElementById('overlay');
 const hud = document.getElementById('hud'), msg = document.getElementById('msg');
 const token = new URLSearchParams(location.search).get('token');
 const wsUrl = (location.protocol === 'https:' ? 'wss://' : 'ws://') + location.host + '/ws'
   + (token ? '?token=' + encodeURIComponent(token) : '');
 const ws = new WebSocket(wsUrl);
-ws.binaryType = 'blob';
-let pose = Object.assign({}, RESET), info = null, pending = null, times = [], url = null;
-let drawn = 0, lastSend = 0, measured = true;
+ws.binaryType = 'arraybuffer';
+let pose = Object.assign({}, RESET), info = null, pending = null, times = [];
+let drawn = 0, lastSend = 0, measured = true, busy = null, shownRow = null;
+let hudAt = -1e9, hudTimer = null;
 const latencies = [];  // ms from a pose sent to the first image of that pose drawn
+const painter = picture.getContext('2d', {alpha: false});
 window.accelcal = {pose: () => pose, info: () => info, drawn: () => drawn,
                    fps: () => fps(), state: () => ws.readyState, latencies: () => latencies};
 function fps() {
@@ -43,6 +45,31 @@ function send(change) {
     lastSend = performance.now(); measured = false; ws.send(JSON.stringify(pose));
   }
 }
+// the JPEG decoded off the page's thread (createImageBitmap: in Chromium 150 it cost the
+// browser 1 ms a frame where WebCodecs' ImageDecoder cost 7, benchmarks/bench_serve_browser.py)
+function decode(bytes) {
+  return createImageBitmap(new Blob([bytes], {type: 'image/jpeg'}));
+}
+async function show(bytes, meta) {
+  try {
+    const frame = await decode(bytes);
+    if (picture.width !== frame.width || picture.height !== frame.height) {
+      picture.width = frame.width; picture.height = frame.height;
+    }
+    painter.drawImage(frame, 0, 0);
+    frame.close();
+    info = meta; drawn += 1; times.push(performance.now());
+    if (!measured && meta && Math.abs(meta.az - pose.az) < 1e-6
+        && Math.abs(meta.el - pose.el) < 1e-6 && Math.abs(meta.fov - pose.fov) < 1e-6) {
+      latencies.push(performance.now() - lastSend); measured = true;
+    }
+    draw(false);
+  } catch (e) {
+    msg.textContent = 'cannot draw a frame: ' + e;
+  } finally {  // acknowledged drawn or not: the stream goes on
+    if (ws.readyState === 1) ws.send(JSON.stringify({ack: meta ? meta.sent : 0}));
+  }
+}
 ws.onmessage = (event) => {
   if (typeof event.data === 'string') {
     const data = JSON.parse(event.data);
@@ -51,32 +78,35 @@ ws.onmessage = (event) => {
     pending = data; return;
   }
   const meta = pending; pending = null;
-  const next = URL.createObjectURL(event.data);
-  img.onload = () => {
-    if (url) URL.revokeObjectURL(url);
-    url = next; info = meta; drawn += 1; times.push(performance.now());
-    if (!measured && meta && Math.abs(meta.az - pose.az) < 1e-6
-        && Math.abs(meta.el - pose.el) < 1e-6 && Math.abs(meta.fov - pose.fov) < 1e-6) {
-      latencies.push(performance.now() - lastSend); measured = true;
-    }
-    draw(); ws.send(JSON.stringify({ack: meta ? meta.sent : 0}));
-  };
-  img.src = next;
+  // frames are drawn in order: the next one waits for this one's decode
+  busy = (busy || Promise.resolve()).then(() => show(event.data, meta));
 };
 ws.onclose = (event) => {
   if (!msg.textContent) msg.textContent = 'closed (' + event.code + ') ' + (event.reason || '');
 };
-function draw() {
+// the horizon line is redrawn when it moves or the page is resized, the HUD 5 times a second
+function draw(resized) {
   if (!info) return;
-  const w = img.clientWidth, h = img.clientHeight, s = w / info.width;
-  overlay.width = w; overlay.height = h;
-  const c = overlay.getContext('2d');
-  // horizon_row is null when the horizon is not in the view: no line
-  const y = info.horizon_row === null ? NaN : (info.horizon_row + 0.5) * s;
-  if (y >= 0 && y <= h) {
-    c.strokeStyle = 'rgba(255,220,0,.9)'; c.setLineDash([12, 8]); c.lineWidth = 1.5;
-    c.beginPath(); c.moveTo(0, y); c.lineTo(w, y); c.stroke();
+  const w = picture.clientWidth, h = picture.clientHeight, s = w / info.width;
+  const row = info.horizon_row === null ? null : (info.horizon_row + 0.5) * s;
+  if (resized || overlay.width !== w || overlay.height !== h || row !== shownRow) {
+    if (overlay.width !== w || overlay.height !== h) { overlay.width = w; overlay.height = h; }
+    const c = overlay.getContext('2d');
+    c.clearRect(0, 0, w, h);
+    // horizon_row is null when the horizon is not in the view: no line
+    if (row !== null && row >= 0 && row <= h) {
+      c.strokeStyle = 'rgba(255,220,0,.9)'; c.setLineDash([12, 8]); c.lineWidth = 1.5;
+      c.beginPath(); c.moveTo(0, row); c.lineTo(w, row); c.stroke();
+    }
+    shownRow = row;
   }
+  const wait = 200 - (performance.now() - hudAt);
+  if (resized || wait <= 0) writeHud();
+  else if (hudTimer === null) hudTimer = setTimeout(writeHud, wait);  // the last one too
+}
+function writeHud() {
+  if (hudTimer !== null) { clearTimeout(hudTimer); hudTimer = null; }
+  hudAt = performance.now();
   hud.textContent = 'az ' + info.az.toFixed(1) + '\u00b0  el ' + info.el.toFixed(1)
     + '\u00b0  fov ' + info.fov.toFixed(1) + '\u00b0  ' + fps().toFixed(1) + ' fps  '
     + (100 * info.covered).toFixed(0) + '% seen';
@@ -89,7 +119,7 @@ stage.addEventListener('mousedown', (e) => {
 window.addEventListener('mouseup', () => { drag = null; });
 window.addEventListener('mousemove', (e) => {
   if (!drag || !info) return;
-  const w = img.clientWidth || info.width;
+  const w = picture.clientWidth || info.width;
   const f = (w / 2) / Math.tan(pose.fov * Math.PI / 360);   // px per radian at the centre
   const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
   drag = {x: e.clientX, y: e.clientY};
@@ -108,7 +138,7 @@ window.addEventListener('keydown', (e) => {
   else if (e.key === '+' || e.key === '=') send({fov: pose.fov / 1.1});
   else if (e.key === '-') send({fov: pose.fov * 1.1});
 });
-window.addEventListener('resize', draw);
+window.addEventListener('resize', () => draw(true));
 </script></body></html>
 """
 """The whole page: image, horizon line, HUD (az/el/fov, fps, coverage), input handlers."""

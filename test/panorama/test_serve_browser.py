@@ -63,13 +63,11 @@ def _wait(predicate, timeout=30.0):
 
 
 def _shown(driver):
-    """Return the image the tab shows (decoded from its <img>) as a grey array."""
+    """Return the image the tab shows (read off its <canvas>) as a grey array."""
     data = driver.execute_script(
-        "const i = document.getElementById('view'); const c = document.createElement('canvas');"
-        'c.width = i.naturalWidth; c.height = i.naturalHeight;'
-        "const x = c.getContext('2d'); x.drawImage(i, 0, 0);"
-        'const d = x.getImageData(0, 0, c.width, c.height).data; const g = [];'
-        'for (let k = 0; k < d.length; k += 4) g.push(d[k] + d[k + 1] + d[k + 2]);'
+        "const c = document.getElementById('view');"
+        "const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+        'const g = []; for (let k = 0; k < d.length; k += 4) g.push(d[k] + d[k + 1] + d[k + 2]);'
         'return [c.width, c.height, g];')
     width, height, grey = data
     return np.array(grey, float).reshape(height, width) / 3.0
