@@ -195,6 +195,7 @@ def test_two_outputs_with_one_path_are_refused(tmp_path, capsys):
     ['calibrate', '{tmp}/rec.csv', '-o', '{tmp}/c.yaml', '--plot', '{dir}'],
     ['georeference', '--cloud', 'a.pcd', '--poses', 'p.csv', '--boresight', 'b.yaml',
      '-o', '{dir}'],
+    ['rig-calibrate', 'capture', '--board', '9x6', '--square-m', '0.025', '-o', '{dir}'],
 ])
 def test_a_directory_for_a_file_output_is_refused_before_the_command_runs(tmp_path, argv):
     """A plot, a JSON table, a study's CSV, -o of a file writer: a folder there is refused."""

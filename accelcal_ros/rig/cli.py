@@ -42,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction,
                    help='reference camera (carries the IMU; default: first name in order)')
     p.add_argument('--level-board', action='store_true',
                    help='take the board as level instead of estimating its tilt')
-    p.set_defaults(handler=_calibrate)
+    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}))
 
     s = study_subparsers.add_parser(
         'rig', help='rig calibration accuracy against the number of poses',
