@@ -329,8 +329,10 @@ class GridMaps:
         rays[0, count:] = tables['cell_u'][cell]
         rays[1, count:] = tables['cell_v'][cell]
         rays[2] = 1.0
-        label = cams[np.concatenate([node // (ny * nx), cell // (nyc * nxc)])]
-        _, px, py, side = projection._evaluate_soa(rays, rotations, only=label)
+        # nodes and cells are camera by camera: two runs of the cameras in order
+        sizes = np.concatenate([np.diff(np.searchsorted(node, np.arange(cn + 1) * (ny * nx))),
+                                np.diff(np.searchsorted(cell, np.arange(cn + 1) * (nyc * nxc)))])
+        label, px, py, side = projection._evaluate_runs(rays, rotations, np.tile(cams, 2), sizes)
         bad = (side & 16) != 0
         # the bilinear interpolation at each cell's centre (its four corner nodes, all
         # evaluated) against the exact value, where the cell's corners and centre have

@@ -235,8 +235,7 @@ class WarpPlan:
         coef = active_lines[:, 0:1]
         rest = active_lines[:, 1:2] * v + active_lines[:, 2:3]  # (m, rows)
         small = tiny[cam_of, line_of][:, None]
-        with np.errstate(divide='ignore', invalid='ignore'):
-            bound = -rest / coef
+        bound = -rest / np.where(np.abs(coef) > small, coef, 1.0)  # used where |coef| > small
         lo_all = np.where(coef > small, np.ceil(bound), 0.0)
         hi_all = np.where(coef < -small, np.floor(bound), width - 1.0)
         hi_all[(np.abs(coef) <= small) & (rest < 0)] = -1.0
