@@ -28,10 +28,12 @@ outside the odometry's time span, or between two poses further apart than
 counted in the scan totals).
 
 Threads: the subscriptions' callbacks only hand their message to an inbox (a deque, in
-arrival order with the arrival time) and never wait for the georeferencing; the 50 Hz
-timer drains it into the core and georeferences what is ready. Callbacks that waited on
-the core's lock while the timer worked made the MultiThreadedExecutor this node once
-used take 0.3-4 s per scan instead of 6 ms (odometry then overflowed its queue: 0.5-0.9 s
+arrival order) and never wait for the georeferencing; the 50 Hz timer drains it into the
+core and georeferences what is ready, on the node's running clock
+(:class:`~accelcal_ros.lidar.assembler.RunningClock`: a scan's wait for odometry does
+not run out while the process, odometry callbacks included, was starved of CPU). Callbacks
+that waited on the core's lock while the timer worked made the MultiThreadedExecutor this
+node once used take 0.3-4 s per scan instead of 6 ms (odometry then overflowed its queue: 0.5-0.9 s
 pose gaps in the demo's drive); it runs on the EventsExecutor, as the other nodes.
 """
 from collections import deque
@@ -74,7 +76,7 @@ class CloudAssemblerNode(Node):
         super().__init__('cloud_assembler')
         self.params = ParameterSet(self, SPECS, self._on_change)
         from accelcal_ros.frames import rotation_from_rpy_radians
-        from accelcal_ros.lidar.assembler import CloudAssembler
+        from accelcal_ros.lidar.assembler import CloudAssembler, RunningClock
         from accelcal_ros.lidar.boresight import load_boresight
 
         p = self.params
@@ -87,7 +89,8 @@ class CloudAssemblerNode(Node):
                                     p['pose_buffer_s'], p['max_wait_s'], p['max_points'],
                                     max_gap_s=p['max_pose_gap_s'] or None)
         self._lock = threading.Lock()
-        self._inbox: deque = deque()  # ('pose' | 'scan', arrival s, ...) in arrival order
+        self._inbox: deque = deque()  # ('pose' | 'scan', ...) in arrival order
+        self._running = RunningClock()  # the core's clock: a CPU stall does not count
         self._nav_frame = 'map'
         self._warned = set()
         self._drops = DropCounter(self)
@@ -161,7 +164,7 @@ class CloudAssemblerNode(Node):
     def _on_odom(self, msg):
         pose = msg.pose.pose
         q = pose.orientation
-        self._inbox.append(('pose', time.monotonic(), stamp_to_seconds(msg.header.stamp),
+        self._inbox.append(('pose', stamp_to_seconds(msg.header.stamp),
                             [pose.position.x, pose.position.y, pose.position.z],
                             [q.x, q.y, q.z, q.w], msg.header.frame_id))
 
@@ -171,40 +174,46 @@ class CloudAssemblerNode(Node):
         except AccelcalError as exc:
             self._drops.drop('scans', f'scan dropped: {exc}')
             return
-        self._inbox.append(('scan', time.monotonic(), stamp_to_seconds(msg.header.stamp), cloud))
+        self._inbox.append(('scan', stamp_to_seconds(msg.header.stamp), cloud))
 
-    def _drain(self):
-        """Hand the inbox to the core, in arrival order (with the lock held)."""
+    def _drain(self, now_s):
+        """
+        Hand the inbox to the core, in arrival order (with the lock held).
+
+        Each item arrives at ``now_s`` on the core's clock (:class:`RunningClock`: at this
+        tick, at most one tick after it came, so a scan waits that much longer).
+        """
         while self._inbox:
             item = self._inbox.popleft()
             if item[0] == 'pose':
-                _, arrival, stamp, position, quat, frame = item
-                reason = self._core.add_pose(stamp, position, quat, arrival)
+                _, stamp, position, quat, frame = item
+                reason = self._core.add_pose(stamp, position, quat, now_s)
                 if reason:
                     self._drops.drop('odometry', f'odometry rejected: {reason}')
                 elif frame:
                     self._nav_frame = frame
                 continue
-            _, arrival, stamp, cloud = item
+            _, stamp, cloud = item
             try:
-                self._core.add_scan(stamp, cloud, arrival)
+                self._core.add_scan(stamp, cloud, now_s)
             except AccelcalError as exc:
                 self._drops.drop('scans', f'scan dropped: {exc}')
 
     def _on_timer(self):
         with self._lock:
-            self._drain()
-            done = self._core.process(time.monotonic())
+            now = self._running.tick(time.monotonic())
+            self._drain(now)
+            done = self._core.process(now)
             frame = self.params['frame_id'] or self._nav_frame
         for nav, stats in done:
             if stats is None:
                 self._drops.drop('scans', 'scan dropped: no odometry received yet')
                 continue
-            if not len(nav):
-                continue
-            if stats.before_span or stats.after_span or stats.in_gap:
+            if stats.before_span or stats.after_span or stats.in_gap:  # a scan wholly too
                 self._warn_once('span', f'{stats.summary()} (points outside the odometry '
                                         'are dropped, never extrapolated)')
+            if not len(nav):
+                continue
             if self.params['map_crs']:
                 nav, frame = self._to_map(nav), self.params['frame_id'] or 'map'
             header = Header()
@@ -256,8 +265,9 @@ class CloudAssemblerNode(Node):
         """
         if self.params['output_file']:
             with self._lock:
-                self._drain()
-                self._core.process(time.monotonic(), force=True)
+                now = self._running.tick(time.monotonic())
+                self._drain(now)
+                self._core.process(now, force=True)
             ok, message = self._save()
             if ok:
                 self.get_logger().info(message)

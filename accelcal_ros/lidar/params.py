@@ -122,9 +122,10 @@ CLOUD_ASSEMBLER_PARAMS = (
               validator=_origin_ok, read_only=True, unit='m'),
     ParamSpec('save_voxel_m', 0.0, 'thin the saved cloud to one point per voxel of this size '
               '(0 = every point)', minimum=0.0, maximum=100.0, unit='m'),
-    ParamSpec('max_wait_s', 0.5, 'how long a scan waits for odometry to cover it, counted '
-              'from the arrival of the newest pose (late odometry is waited for while it still '
-              'comes)',
+    ParamSpec('max_wait_s', 3.0, 'how long a scan waits for odometry to cover it, counted '
+              'from the arrival of the newest pose on the running clock of the node (a CPU stall '
+              'does not count): late odometry is waited for while it still comes; DDS '
+              'repairs of reliable odometry after a stall took up to 1 s',
               minimum=0.0, maximum=10.0, unit='s'),
     ParamSpec('max_pose_gap_s', 0.25, 'points between two odometry poses further apart '
               'than this are dropped and counted, never interpolated across the gap (lost '

@@ -17,6 +17,7 @@ import time
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 
 
@@ -85,6 +86,42 @@ class NodeProcess:
         return self.proc.returncode
 
 
+class _ProbeNode(Node):
+    """
+    The probe node: what is destroyed while its executor spins is destroyed in that thread.
+
+    rclpy 7's executor builds its wait set from the node's entities without a lock: a
+    subscription (with its QoS event handlers) destroyed from another thread meanwhile
+    raised ``InvalidHandle: cannot use Destroyable because destruction was requested`` in
+    the executor's thread, which died, and the probe received nothing more (CI:
+    ``test_still_scene_panorama_horizon_is_steady[800.0]``, "0 panoramas received", after
+    the test dropped its 800 Hz subscription). So ``destroy_*`` (tests, the drive helpers)
+    hand the destruction to :meth:`Graph.in_spin_thread`.
+    """
+
+    graph = None
+
+    def _in_spin_thread(self, destroy, entity):
+        if self.graph is None:
+            return destroy(self, entity)
+        return self.graph.in_spin_thread(lambda: destroy(self, entity))
+
+    def destroy_publisher(self, publisher):
+        return self._in_spin_thread(Node.destroy_publisher, publisher)
+
+    def destroy_subscription(self, subscription):
+        return self._in_spin_thread(Node.destroy_subscription, subscription)
+
+    def destroy_client(self, client):
+        return self._in_spin_thread(Node.destroy_client, client)
+
+    def destroy_service(self, service):
+        return self._in_spin_thread(Node.destroy_service, service)
+
+    def destroy_timer(self, timer):
+        return self._in_spin_thread(Node.destroy_timer, timer)
+
+
 class Graph:
     """
     A probe node (own context and executor thread) plus the node processes it started.
@@ -98,18 +135,58 @@ class Graph:
         self.log_dir = log_dir
         self.context = Context()
         rclpy.init(context=self.context)
-        self.node = rclpy.create_node(name, context=self.context)
+        self.node = _ProbeNode(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._stop = False
+        self._pending = []
+        self._pending_lock = threading.Lock()
+        self._wake = self.node.create_guard_condition(lambda: None)
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
+        self.node.graph = self
         self.processes = []
         self._clients = {}
 
     def _spin(self):
         while not self._stop and self.context.ok():
+            with self._pending_lock:
+                pending, self._pending = self._pending, []
+            for run in pending:
+                run()
             self.executor.spin_once(timeout_sec=0.05)
+
+    def in_spin_thread(self, function, timeout=30.0):
+        """
+        Run ``function()`` in the probe's executor thread, between two waits; return its result.
+
+        Run at once when called from that thread or once it has stopped (:meth:`close`).
+        """
+        if threading.current_thread() is self._thread or not self._thread.is_alive():
+            return function()
+        done, outcome = threading.Event(), {}
+
+        def run():
+            try:
+                outcome['value'] = function()
+            except BaseException as exc:  # handed to the caller
+                outcome['error'] = exc
+            finally:
+                done.set()
+
+        with self._pending_lock:
+            self._pending.append(run)
+        self._wake.trigger()  # ends the executor's wait now
+        if not done.wait(timeout):
+            raise TimeoutError(f"the probe's executor thread did not run {function!r} "
+                               f'in {timeout} s')
+        if 'error' in outcome:
+            raise outcome['error']
+        return outcome.get('value')
+
+    def unsubscribe(self, collector):
+        """Stop ``collector``'s subscription (destroyed in the executor's thread); True if done."""
+        return self.node.destroy_subscription(collector._sub)
 
     def start(self, exe, params=None, remaps=None, name=None, args=()):
         """Start an installed executable as a process; it is stopped in :meth:`close`."""
@@ -230,6 +307,7 @@ class Graph:
             proc.stop()
         self._stop = True
         self._thread.join(timeout=2.0)
+        self.node.graph = None  # the executor is done: destroyed here, at once
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)

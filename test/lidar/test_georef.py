@@ -1,7 +1,7 @@
 """Georeferencing against the moving-platform truth, error budget, streaming cores."""
 from accelcal_ros.errors import InputError
 from accelcal_ros.lidar import scanner_sim as sim
-from accelcal_ros.lidar.assembler import CloudAssembler
+from accelcal_ros.lidar.assembler import CloudAssembler, RunningClock
 from accelcal_ros.lidar.capture import CaptureSettings, StaticCapture
 from accelcal_ros.lidar.cloud import make_cloud, point_times, xyz
 from accelcal_ros.lidar.error_budget import error_budget, paper_totals_m, sync_error_m
@@ -167,6 +167,50 @@ def test_assembler_waits_while_late_odometry_still_arrives_and_not_for_a_stopped
     (nav, stats), = asm.process(now_s=1.51)
     assert 0 < stats.kept < len(scene.cloud) and stats.after_span > 0
     assert stats.kept + stats.after_span + stats.before_span == len(scene.cloud)
+
+
+def test_a_cpu_stall_does_not_end_a_scans_wait_on_the_running_clock(scene):
+    """
+    The node starved of CPU for 2 s: on its running clock the scan still waits for the poses.
+
+    The node's 20 ms timer ticks the clock; a stall (no callback ran, the odometry queued)
+    counts as one step of ``RUNNING_STEP_S``. On the wall clock (previous code) the first
+    tick after the stall found the scan 2 s old and no pose for 2 s, and sent it with the
+    poses there were: half its points "after the poses" (CI, the drive's last scans).
+    """
+    poses, n = scene.poses, len(scene.poses.t)
+    for clock in (RunningClock(), None):   # the node's clock; the wall clock before
+        asm = CloudAssembler(scene.boresight, scene.lever_arm_m, max_wait_s=0.5)
+        wall = 100.0
+        now = clock.tick(wall) if clock else wall
+        for k in range(n // 2):
+            asm.add_pose(poses.t[k], poses.position[k], poses.quat_xyzw[k], now_s=now)
+        asm.add_scan(scene.scan_start_s, scene.cloud, now_s=now)
+        for _ in range(5):  # 20 ms ticks, then the stall
+            wall += 0.02
+            assert asm.process(clock.tick(wall) if clock else wall) == []
+        wall += 2.0
+        now = clock.tick(wall) if clock else wall
+        done = asm.process(now)  # the timer first, the odometry callbacks after it
+        if clock is None:
+            (_, stats), = done
+            assert stats.after_span > 0
+            continue
+        assert done == [] and clock.stalled_s == pytest.approx(1.9)
+        for k in range(n // 2, n):
+            asm.add_pose(poses.t[k], poses.position[k], poses.quat_xyzw[k], now_s=now)
+        (_, stats), = asm.process(clock.tick(wall + 0.02))
+        assert stats.kept == len(scene.cloud) and stats.after_span == 0
+    # a stream that stopped: the wait still ends after max_wait_s of steady ticks
+    clock = RunningClock()
+    asm = CloudAssembler(scene.boresight, scene.lever_arm_m, max_wait_s=0.5)
+    asm.add_pose(poses.t[0], poses.position[0], poses.quat_xyzw[0], now_s=clock.tick(0.0))
+    asm.add_pose(poses.t[1], poses.position[1], poses.quat_xyzw[1], now_s=clock.tick(0.0))
+    asm.add_scan(scene.scan_start_s, scene.cloud, now_s=clock.tick(0.0))
+    ticks = 0
+    while not asm.process(clock.tick(0.02 * (ticks + 1))):
+        ticks += 1
+    assert ticks + 1 == pytest.approx(25, abs=1) and clock.stalled_s == 0.0
 
 
 def test_assembler_bounds_the_scans_waiting_for_poses(scene):

@@ -177,7 +177,7 @@ def test_still_scene_panorama_horizon_is_steady(viewer_graph, tmp_path, rate):
     driver = graph.start('imu_driver', {'backend': 'sim', 'rate_hz': rate, 'seed': 7,
                                         'sim.poses_deg': [4.0, -7.0], 'sim.dwell_s': 3600.0})
     true_msg = truth.wait_for(1, timeout=30.0)[0]
-    graph.node.destroy_subscription(truth._sub)   # one is enough: spare the probe 800 Hz
+    graph.unsubscribe(truth)   # one is enough: spare the probe 800 Hz
     true = (true_msg.vector.x, true_msg.vector.y)
     assert np.degrees(true) == pytest.approx([4.0, -7.0], abs=1e-6), driver.output()
     views = render.render_camera_views(render.make_scene(1800, 900, seed=2), rig, *true)
@@ -213,7 +213,7 @@ def test_still_scene_panorama_horizon_is_steady(viewer_graph, tmp_path, rate):
             msgs, _ = attitude.snapshot()
             if msgs:
                 first_attitude = stamp_to_seconds(msgs[0].header.stamp)
-                graph.node.destroy_subscription(attitude._sub)
+                graph.unsubscribe(attitude)
         elif frame % 25 == 0 and len(_successive(
                 horizons.scored(first_attitude + SETTLE_S))) >= WANT_PAIRS:
             break
