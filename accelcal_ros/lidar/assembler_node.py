@@ -31,10 +31,11 @@ Threads: the subscriptions' callbacks only hand their message to an inbox (a deq
 arrival order) and never wait for the georeferencing; the 50 Hz timer drains it into the
 core and georeferences what is ready, on the node's running clock
 (:class:`~accelcal_ros.lidar.assembler.RunningClock`: a scan's wait for odometry does
-not run out while the process, odometry callbacks included, was starved of CPU). Callbacks
-that waited on the core's lock while the timer worked made the MultiThreadedExecutor this
-node once used take 0.3-4 s per scan instead of 6 ms (odometry then overflowed its queue: 0.5-0.9 s
-pose gaps in the demo's drive); it runs on the EventsExecutor, as the other nodes.
+not run out while the process, odometry callbacks included, was starved of CPU).
+Callbacks that waited on the core's lock while the timer worked made the
+MultiThreadedExecutor this node once used take 0.3-4 s per scan instead of 6 ms (odometry
+then overflowed its queue: 0.5-0.9 s pose gaps in the demo's drive); it runs on the
+EventsExecutor, as the other nodes.
 """
 from collections import deque
 import threading
@@ -209,7 +210,8 @@ class CloudAssemblerNode(Node):
             if stats is None:
                 self._drops.drop('scans', 'scan dropped: no odometry received yet')
                 continue
-            if stats.before_span or stats.after_span or stats.in_gap:  # a scan wholly too
+            # said also of a scan no pose covers at all (nothing left of it to publish)
+            if stats.before_span or stats.after_span or stats.in_gap:
                 self._warn_once('span', f'{stats.summary()} (points outside the odometry '
                                         'are dropped, never extrapolated)')
             if not len(nav):

@@ -10,7 +10,7 @@ smooth function of the view pixel over its region (its homography, then its lens
 
 1. The view is cut into cells of :data:`GRID_STEP_PX` pixels. Every camera is evaluated
    exactly at the corners of the cells its region touches and at their centres
-   (:meth:`~.rig_projection.RigProjection._evaluate_soa`, each ray through its own
+   (:meth:`~.rig_projection.RigProjection._evaluate_runs`, each ray through its own
    camera: the same ``K_i``, ``D_i`` as the panorama, no second copy);
 2. A cell inside one camera's region takes that camera's values at its corners, and one
    ``cv2.resize`` (bilinear) per map plane spreads the node grid to every pixel: its
@@ -217,8 +217,8 @@ class GridMaps:
     ``(cx, cy)``. The view is cut into cells of :attr:`step` pixels whose corners are the
     nodes (view pixel ``(a s - 1/2, b s - 1/2)``); each camera is evaluated exactly at
     the nodes of the cells its region touches and at their centres, to check the
-    interpolation's error (one :meth:`~.rig_projection.RigProjection._evaluate_soa` call
-    for all of them). A cell inside one camera's region (*pure*) takes that camera's
+    interpolation's error (one :meth:`~.rig_projection.RigProjection._evaluate_runs`
+    call for all of them, camera by camera). A cell inside one camera's region (*pure*) takes that camera's
     values at its corners, spread to every pixel by ``cv2.resize`` of the node grid; a
     cell no region touches reads ``OUTSIDE``; the others -- seams, frame edges, and pure
     cells a corner of which another kind of cell takes too -- are filled pixel by pixel,

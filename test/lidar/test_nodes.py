@@ -88,23 +88,24 @@ def test_cloud_assembler_keeps_every_pose_of_a_drive(graph, tmp_path, monkeypatc
                                            'points_reliable': True,
                                            'output_file': str(tmp_path / 'map.ply')})
     sent = drive_moving_platform(graph.node, scene, reliable=True, pace=0.5)
-    scans, message = _saved_counts(graph, sent)
-    got, points = (int(w) for w in message.split('; ')[-1].split(' points')[0].split(
-        ' scans, ')[1].split(' of '))
-    assert got == points and '0 in pose gaps' in message, message
-    # a reliable writer keeps 20 scans: one that the node takes too late is lost
-    assert scans >= sent // 2, message
+    _assert_every_point_kept(graph, sent)
 
 
-def _saved_counts(graph, sent, patience_s=60.0):
-    """Call ``cloud_assembler/save`` until its scan count stands; return (scans, message)."""
+def _assert_every_point_kept(graph, sent, patience_s=60.0):
+    """Save until the scan count stands; every point received georeferenced, no pose gap."""
     deadline, counts = time.monotonic() + patience_s, []
     while True:  # the node may still be working off a backlog: until its count stands
         message = graph.call(Trigger, 'cloud_assembler/save', timeout=20.0).message
         counts.append(int(message.split('; ')[-1].split(' scans')[0]))
         if counts[-1] >= sent or counts[-4:] == counts[-1:] * 4 or time.monotonic() > deadline:
-            return counts[-1], message
+            break
         time.sleep(1.0)
+    scans = counts[-1]
+    got, points = (int(w) for w in message.split('; ')[-1].split(' points')[0].split(
+        ' scans, ')[1].split(' of '))
+    assert got == points and '0 in pose gaps' in message, message
+    # a reliable writer keeps 20 scans: one that the node takes too late is lost
+    assert scans >= sent // 2, message
 
 
 @pytest.mark.graph
@@ -129,24 +130,23 @@ def test_cloud_assembler_waits_out_a_cpu_stall(graph, tmp_path, monkeypatch, exe
         'boresight_file': str(bs), 'lever_arm_m': scene.lever_arm_m.tolist(),
         'queue_depth': 200, 'points_reliable': True, 'output_file': str(tmp_path / 'map.ply')})
     pid = node.proc.pid
+    deadline = time.monotonic() + 30.0  # the node up (subscribed), so the stall is mid-drive
+    while graph.node.count_subscribers('odom') < 1 and time.monotonic() < deadline:
+        time.sleep(0.05)
 
     def stall():
         os.kill(pid, signal.SIGSTOP)
         time.sleep(1.5)
         os.kill(pid, signal.SIGCONT)
 
-    stopper = threading.Timer(2.0, stall)
+    stopper = threading.Timer(2.0, stall)   # the drive takes 6 s
     stopper.start()
     try:
         sent = drive_moving_platform(graph.node, scene, reliable=True, pace=0.5)
     finally:
         stopper.join()
         os.kill(pid, signal.SIGCONT)
-    scans, message = _saved_counts(graph, sent)
-    got, points = (int(w) for w in message.split('; ')[-1].split(' points')[0].split(
-        ' scans, ')[1].split(' of '))
-    assert got == points and '0 in pose gaps' in message, message
-    assert scans >= sent // 2, message
+    _assert_every_point_kept(graph, sent)
 
 
 @pytest.mark.graph
