@@ -211,22 +211,20 @@ class GridMaps:
     """
     One map over one pose's view (view pixel -> mosaic pixel), each camera's part in it.
 
-    ``plan`` is the pose's :class:`~.view_warp.WarpPlan`, ``projection`` the view's
-    builder (:class:`~.rig_projection.RigProjection`) and ``rotations`` its camera
-    rotations ``A_i`` (view pixel offsets -> camera ``i``) with the view's centre
-    ``(cx, cy)``. The view is cut into cells of :attr:`step` pixels whose corners are the
-    nodes (view pixel ``(a s - 1/2, b s - 1/2)``); each camera is evaluated exactly at
-    the nodes of the cells its region touches and at their centres, to check the
-    interpolation's error (one :meth:`~.rig_projection.RigProjection._evaluate_runs`
-    call for all of them, camera by camera). A cell inside one camera's region (*pure*) takes that camera's
-    values at its corners, spread to every pixel by ``cv2.resize`` of the node grid; a
-    cell no region touches reads ``OUTSIDE``; the others -- seams, frame edges, and pure
-    cells a corner of which another kind of cell takes too -- are filled pixel by pixel,
-    each pixel of a region with the bilinear interpolation of its camera's nodes (the
-    resize's weights), the rest ``OUTSIDE``. The map is planar (:attr:`map_x`,
-    :attr:`map_y`: ``cv2.remap`` takes both; OpenCV 4.6 and 5.0 remap and resize planes
-    a little faster), windows of :attr:`buffer`, which is reused for the next pose with
-    :attr:`buffers`.
+    ``plan`` is the pose's :class:`~.view_warp.WarpPlan`, ``projection`` the view's builder
+    (:class:`~.rig_projection.RigProjection`) and ``rotations`` its camera rotations ``A_i`` (view
+    pixel offsets -> camera ``i``) with the view's centre ``(cx, cy)``. The view is cut into cells
+    of :attr:`step` pixels whose corners are the nodes (view pixel ``(a s - 1/2, b s - 1/2)``);
+    each camera is evaluated exactly at the nodes of the cells its region touches and at their
+    centres, to check the interpolation's error (one
+    :meth:`~.rig_projection.RigProjection._evaluate_runs` call for all of them, camera by camera).
+    A cell inside one camera's region (*pure*) takes that camera's values at its corners, spread to
+    every pixel by ``cv2.resize`` of the node grid; a cell no region touches reads ``OUTSIDE``; the
+    others -- seams, frame edges, and pure cells a corner of which another kind of cell takes too
+    -- are filled pixel by pixel, each pixel of a region with the bilinear interpolation of its
+    camera's nodes (the resize's weights), the rest ``OUTSIDE``. The map is planar (:attr:`map_x`,
+    :attr:`map_y`: ``cv2.remap`` takes both; OpenCV 4.6 and 5.0 remap and resize planes a little
+    faster), windows of :attr:`buffer`, which is reused for the next pose with :attr:`buffers`.
     """
 
     def __init__(self, plan: WarpPlan, projection: Any, rotations: np.ndarray, cx: float,
