@@ -188,14 +188,17 @@ def output_problem(dest: str, path: str, args: argparse.Namespace) -> Optional[s
 
     A device, a FIFO or a socket is never an output; an existing directory is refused
     for a file-only output (:func:`is_file_output`) and left to the command otherwise
-    (a rosbag2 or a folder of frames is a directory).
+    (a rosbag2 or a folder of frames is a directory); a new path needs a parent it can be
+    made in (:func:`~accelcal_ros.outputs.parent_problem`: a file there, or no permission,
+    is refused now, not after the command's work).
     """
     from accelcal_ros.filecheck import output_path_problem
+    from accelcal_ros.outputs import parent_problem
 
     if os.path.isdir(path):
         return output_path_problem(path) if is_file_output(dest, args) else None
     problem = output_path_problem(path)
-    return f'{problem}; give a file path' if problem else None
+    return f'{problem}; give a file path' if problem else parent_problem(path)
 
 
 def run_command(args: argparse.Namespace) -> int:

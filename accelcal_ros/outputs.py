@@ -46,7 +46,17 @@ def output_path_problem(value: str, suffixes: Sequence[str] = (),
         return f'{value!r} is a directory: give a file path'
     if os.path.exists(path) and directory and not os.path.isdir(path):
         return f'{value!r} is a file: give a directory'
-    parent = os.path.dirname(path)
+    return parent_problem(value)
+
+
+def parent_problem(value: str) -> Optional[str]:
+    """
+    Return why nothing can be made at ``value`` for want of a place, or None.
+
+    Its nearest existing parent must be a directory this process may create entries in
+    (the missing ones between are made by the atomic writers). Nothing is created.
+    """
+    parent = os.path.dirname(os.path.abspath(os.path.expanduser(value)))
     while parent and not os.path.exists(parent):
         parent = os.path.dirname(parent) if os.path.dirname(parent) != parent else ''
     if parent and not os.path.isdir(parent):

@@ -211,6 +211,28 @@ def test_a_directory_for_a_file_output_is_refused_before_the_command_runs(tmp_pa
     assert not ran and os.listdir(folder) == []
 
 
+@pytest.mark.parametrize('argv', [
+    ['rig-calibrate', 'capture', '--board', '9x6', '--square-m', '0.025', '-o', '{out}'],
+    ['calibrate', '{tmp}/rec.csv', '-o', '{out}'],
+    ['record', '--backend', 'sim', '--duration', '1', '-o', '{out}'],
+    ['apply', 'in.mcap', '--calibration', 'c.yaml', '-o', '{out}'],
+    ['study', 'horizon', '--out', '{out}'],
+])
+def test_an_output_under_a_file_is_refused_before_the_command_runs(tmp_path, argv):
+    """-o FILE/x (a file where a folder must be, a folder output too): refused before any work."""
+    from accelcal_ros.errors import InputError
+
+    blocker = tmp_path / 'FILE'
+    blocker.write_text('keep me\n')
+    out = blocker / 'sub' / 'out.yaml'
+    args = build_parser().parse_args([a.format(out=out, tmp=tmp_path) for a in argv])
+    ran = []
+    args.handler = ran.append
+    with pytest.raises(InputError, match='FILE is a file, not a directory'):
+        cli.run_command(args)
+    assert not ran and blocker.read_text() == 'keep me\n'
+
+
 @pytest.mark.parametrize('argv', [['sample-data', '{dir}'],
                                   ['apply', 'in.mcap', '--calibration', 'c.yaml', '-o', '{dir}'],
                                   ['study', 'horizon', '--out', '{dir}']])
