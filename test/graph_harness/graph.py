@@ -306,7 +306,7 @@ class Graph:
         for proc in self.processes:
             proc.stop()
         self._stop = True
-        self._thread.join(timeout=2.0)
+        self._thread.join(timeout=10.0)
         self.node.graph = None  # the executor is done: destroyed here, at once
         self.executor.shutdown()
         self.node.destroy_node()
