@@ -12,14 +12,13 @@ import time
 from accelcal_ros.driver import sources
 from accelcal_ros.driver.register_sim import SimulatedAdxl345Bus
 from accelcal_ros.driver.sim_sensor import SimulatedAdxl345
-from accelcal_ros.rosutil.runner import make_executor
+from accelcal_ros.rosutil.runner import _spin, _StopFlag, make_executor
 from accelcal_ros.sensor.model import SensorModel
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pytest
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.task import Future
 from sensor_msgs.msg import Imu
 
 pytestmark = pytest.mark.graph
@@ -47,12 +46,12 @@ def test_i2c_node_streams_fifo_and_survives_bus_errors(simulated_bus, capfd):
     """
     FIFO stream mode; a burst of I/O errors is counted, then streaming resumes.
 
-    The node spins on the executor its process uses (``events``, as ``imu_driver``), and
-    the executor thread ends before anything is destroyed: a MultiThreadedExecutor this test
-    once used left a worker running a callback on a destroyed subscription, and the task's
-    unread InvalidHandle was printed ("exception was never retrieved") when the garbage
-    collector found it, in whichever later test was running (CI: a CLI test's one-line
-    stderr check failed).
+    The node spins on the executor and loop its process uses (``events``, as ``imu_driver``:
+    ``runner._spin``), and the spin thread ends before anything is destroyed: a
+    MultiThreadedExecutor this test once used left a worker running a callback on a
+    destroyed subscription, and the task's unread InvalidHandle was printed ("exception was
+    never retrieved") when the garbage collector found it, in whichever later test was
+    running (CI: a CLI test's one-line stderr check failed).
     """
     from accelcal_ros.driver.node import ImuDriverNode
 
@@ -64,17 +63,11 @@ def test_i2c_node_streams_fifo_and_survives_bus_errors(simulated_bus, capfd):
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
     probe.create_subscription(Imu, 'imu/data_raw', received.append, qos)
     probe.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
-    executor, _ = make_executor('events')
+    executor, kind = make_executor('events')
     executor.add_node(node)
     executor.add_node(probe)
-    stop = threading.Event()
-    never = Future()
-
-    def spin():
-        while not stop.is_set():
-            executor.spin_until_future_complete(never, timeout_sec=0.1)
-
-    spinner = threading.Thread(target=spin, daemon=True)
+    stop = _StopFlag()  # the node process's own spin loop, ended as a signal ends it
+    spinner = threading.Thread(target=_spin, args=(executor, kind, stop), daemon=True)
     spinner.start()
     try:
         assert simulated_bus.registers[0x38] & 0xC0 == 0x80  # stream mode
@@ -101,7 +94,7 @@ def test_i2c_node_streams_fifo_and_survives_bus_errors(simulated_bus, capfd):
         assert np.all(np.diff(stamps) > 0)  # evenly spaced, never going back
         assert np.median(np.diff(stamps)) == pytest.approx(1 / 200.0, rel=1e-3)
     finally:
-        stop.set()
+        stop.requested = True
         spinner.join(timeout=10.0)
         executor.shutdown()
         node.close()
