@@ -79,6 +79,33 @@ def test_no_numeric_option_accepts_nan_infinity_or_text():
     assert not unchecked, 'plain int/float (no range; use cli_args): ' + '; '.join(unchecked)
 
 
+WORKLOAD_DESTS = ('trials', 'count', 'seeds', 'package_count')
+HUGE = '10000000000'
+
+
+def _workload_options():
+    """Every ``study`` option that sets how much work a run does (trials, counts, seeds)."""
+    return [(p, a) for p, a in numeric_options()
+            if p[:1] == ('study',) and a.dest in WORKLOAD_DESTS]
+
+
+def test_every_study_workload_option_has_an_upper_bound(capsys):
+    """``--trials 10000000000`` is one line and status 2, not a MemoryError or a day's run."""
+    names = {(' '.join(p), a.option_strings[-1]) for p, a in _workload_options()}
+    for expected in [('study p2p', '--trials'), ('study p2p', '--package-count'),
+                     ('study calibration', '--trials'), ('study motion', '--seeds'),
+                     ('study horizon', '--count'), ('study roi', '--count'),
+                     ('study boresight', '--trials')]:
+        assert expected in names
+    for prefix, action in _workload_options():
+        assert _rejects(action, HUGE), f'{" ".join(prefix)} {action.option_strings[-1]}'
+        assert main(_argv(prefix, action, HUGE)) == 2
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and 'must be at most' in lines[0], captured.err
+        assert captured.out == ''
+
+
 @pytest.mark.parametrize('prefix, action, value', CASES,
                          ids=[f'{" ".join(p)} {a.option_strings[-1]} {v}' for p, a, v in CASES])
 def test_bad_numeric_option_is_one_line_and_status_2(capsys, prefix, action, value):

@@ -16,7 +16,7 @@ Offline commands of the attitude feature.
 import sys
 from typing import Any
 
-from accelcal_ros.cli_args import float_in, nonnegative_int
+from accelcal_ros.cli_args import float_in, int_in, nonnegative_int
 
 
 def register(subparsers: Any, study_subparsers: Any) -> None:
@@ -31,8 +31,9 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--vibration-g', type=float_in(0.0, 1.0), default=None, metavar='G',
                    help='road vibration of the drive (g rms on z, a third on x and y; '
                    'default 0.03; 0: a smooth floor, where a cruise looks still)')
-    p.add_argument('--seeds', type=nonnegative_int, default=0,
-                   help="also the spread of the aided rows' p95 over seeds 0 .. N-1")
+    p.add_argument('--seeds', type=int_in(0, 100), default=0,
+                   help="also the spread of the aided rows' p95 over seeds 0 .. N-1 "
+                   '(at most 100)')
     p.add_argument('--drive-out', help="also write the (first rate's) drive as a CSV "
                    'recording t,ax,ay,az,gx,gy,gz (s, m/s^2, rad/s)')
     p.add_argument('--odometry-out', help='also write its odometry as CSV t,v,yaw_rate')

@@ -18,7 +18,7 @@ import argparse
 import sys
 from typing import Any, Optional, Tuple, TYPE_CHECKING
 
-from accelcal_ros.cli_args import float_in, nonnegative_int, positive_int
+from accelcal_ros.cli_args import float_in, int_in, nonnegative_int, positive_int
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY
 
 if TYPE_CHECKING:  # (numpy: imported where a command runs)
@@ -93,7 +93,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
 
     p = study_subparsers.add_parser('calibration', help='Monte Carlo accuracy of the field '
                                     'calibration vs number of positions; paper A example')
-    p.add_argument('--trials', type=positive_int, default=100, help='calibrations per row (100)')
+    p.add_argument('--trials', type=int_in(1, 10000), default=100,
+                   help='calibrations per row (100; at most 10000)')
     p.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (0)')
     p.add_argument('--quick', action='store_true', help='20 trials, K in 6, 12, 100')
     p.set_defaults(handler=_study)

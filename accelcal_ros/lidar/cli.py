@@ -6,7 +6,7 @@ Command line of the LiDAR feature (paper B).
 """
 import argparse
 
-from accelcal_ros.cli_args import angle_deg, finite_float, float_in, positive_int
+from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
 
 
 def register(subparsers: argparse._SubParsersAction,
@@ -99,7 +99,8 @@ def register(subparsers: argparse._SubParsersAction,
         'boresight', help='boresight error on the simulated 15-position protocol',
         description='Simulate the protocol of paper B (VLP-16 in a room, known boresight) '
                     'for several seeds and report the error of the recovered rotation.')
-    s.add_argument('--trials', type=positive_int, default=5)
+    s.add_argument('--trials', type=int_in(1, 100), default=5,
+                   help='simulated protocols (default 5; at most 100)')
     s.add_argument('--no-prior', action='store_true', help='search the floor without prior')
     s.add_argument('--weighting', choices=('noise', 'equal'), default='equal')
     s.set_defaults(handler=_study)

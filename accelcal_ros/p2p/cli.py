@@ -20,7 +20,7 @@ read. Exit status 0, or 1 when any line was malformed (not merely without a solu
 import sys
 from typing import Any, Dict, Optional, Tuple, TYPE_CHECKING
 
-from accelcal_ros.cli_args import finite_float, float_in, int_in, nonnegative_int, positive_int
+from accelcal_ros.cli_args import finite_float, float_in, int_in, nonnegative_int
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
     from accelcal_ros.camera import CameraModel
@@ -73,13 +73,15 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
         description='Monte Carlo of paper A Table 2 (P2P yaw and range errors caused by '
                     "tilt errors of the paper's K=300/K=100 calibration sets against the "
                     "K=500 truth, and of the package's own K=12 calibration).")
-    study.add_argument('--trials', type=positive_int, default=10000, help='trials (default 10000)')
+    study.add_argument('--trials', type=int_in(1, 1000000), default=10000,
+                       help='trials (default 10000; at most 1000000)')
     study.add_argument('--seed', type=nonnegative_int, default=0, help='random seed (default 0)')
     study.add_argument('--elevation-deg', type=float_in(0.0, 90.0, True, True),
                        default=30.0,
                        help='camera elevation above the emitters seen from them (default 30)')
-    study.add_argument('--package-count', type=nonnegative_int, default=100,
-                       help='number of K=12 package calibrations (default 100; 0: skip)')
+    study.add_argument('--package-count', type=int_in(0, 10000), default=100,
+                       help='number of K=12 package calibrations (default 100; 0: skip; '
+                       'at most 10000)')
     study.add_argument('--no-sweep', action='store_true',
                        help='skip the elevation sweep (geometry dependence)')
     study.add_argument('--json', metavar='PATH', help='also write the figures as JSON')
@@ -249,8 +251,6 @@ def _study_main(args):
     from accelcal_ros.fileio import write_text_atomic
     from accelcal_ros.p2p import study
 
-    if args.trials < 1:
-        raise InputError(f'--trials must be at least 1, got {args.trials}')
     if not 0.0 < args.elevation_deg < 90.0:
         raise InputError(f'--elevation-deg must be in (0, 90), got {args.elevation_deg}')
     geometry = study.StudyGeometry(elevation_deg=args.elevation_deg)

@@ -11,7 +11,7 @@ Offline commands of the panorama feature.
 import os
 from typing import Any, TYPE_CHECKING, Union
 
-from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
+from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in
 from accelcal_ros.panorama.params import MAX_PANORAMA_SIDE_PX
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only
@@ -75,8 +75,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                         'own calibration error of the package')
     p.add_argument('--quick', action='store_true',
                    help='half resolution and 20 calibrations (a few seconds)')
-    p.add_argument('--count', type=positive_int, default=100,
-                   help='calibrations fitted for the own-calibration row (100)')
+    p.add_argument('--count', type=int_in(1, 10000), default=100,
+                   help='calibrations fitted for the own-calibration row (100; at most 10000)')
     p.add_argument('--out', help='folder to write the three panoramas to (PNG)')
     p.set_defaults(handler=_study)
 

@@ -14,7 +14,7 @@ Offline commands of the levelled views (personal regions of interest).
 import math
 from typing import Any, cast, Dict, Optional, Tuple
 
-from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in, positive_int
+from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.view_pose import (MAX_FOV_H_DEG, MAX_VIEW_SIDE_PX, MIN_FOV_H_DEG,
                                              MIN_VIEW_SIDE_PX, ViewPose)
@@ -123,8 +123,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
         'roi', help='false roll of the horizon inside a view panning across the sector, '
                     'for pitch errors and the package calibration (paper A, Fig. 6)')
     p.add_argument('--quick', action='store_true', help='fewer azimuths and calibrations')
-    p.add_argument('--count', type=positive_int, default=100,
-                   help='calibrations fitted for the own-calibration row (100)')
+    p.add_argument('--count', type=int_in(1, 10000), default=100,
+                   help='calibrations fitted for the own-calibration row (100; at most 10000)')
     p.add_argument('--json', help='write the table as JSON here')
     p.set_defaults(handler=_study)
 
