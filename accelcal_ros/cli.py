@@ -192,12 +192,12 @@ def output_problem(dest: str, path: str, args: argparse.Namespace) -> Optional[s
     made in (:func:`~accelcal_ros.outputs.parent_problem`: a file there, or no permission,
     is refused now, not after the command's work).
     """
-    from accelcal_ros.filecheck import output_path_problem
+    from accelcal_ros.filecheck import existing_output_problem
     from accelcal_ros.outputs import parent_problem
 
     if os.path.isdir(path):
-        return output_path_problem(path) if is_file_output(dest, args) else None
-    problem = output_path_problem(path)
+        return existing_output_problem(path) if is_file_output(dest, args) else None
+    problem = existing_output_problem(path)
     return f'{problem}; give a file path' if problem else parent_problem(path)
 
 

@@ -4,7 +4,7 @@ Special files and size limits: what the readers and the writer of :mod:`.fileio`
 A path is read only when ``os.stat`` says it is a regular file, opened with
 ``O_NONBLOCK`` (a FIFO swapped in cannot block the open) and checked again with
 ``fstat``; :data:`SIZE_LIMITS` states the most bytes read per format. An output replaces
-only a regular file (or nothing): :func:`output_path_problem` says why a path cannot be
+only a regular file (or nothing): :func:`existing_output_problem` says why a path cannot be
 one (a directory, ``/dev/full``, a FIFO).
 """
 import contextlib
@@ -93,7 +93,7 @@ def open_regular_file(path: PathLike, what: str = 'file') -> Iterator[IO[bytes]]
         yield handle
 
 
-def output_path_problem(path: PathLike) -> Optional[str]:
+def existing_output_problem(path: PathLike) -> Optional[str]:
     """
     Return why ``path`` cannot be an output file (empty, a directory, a device...), or None.
 

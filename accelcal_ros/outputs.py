@@ -34,9 +34,9 @@ def output_path_problem(value: str, suffixes: Sequence[str] = (),
     if not value.strip():
         return 'must not be empty'
     if not directory:  # a device, FIFO or socket is never replaced (fileio's rule)
-        from accelcal_ros.filecheck import output_path_problem as special_file_problem
+        from accelcal_ros.filecheck import existing_output_problem
 
-        problem = special_file_problem(value)
+        problem = existing_output_problem(value)
         if problem:
             return problem
     path = os.path.abspath(os.path.expanduser(value))

@@ -118,16 +118,16 @@ def output_file_check(allow_empty: bool = False) -> Callable[[Any], Optional[str
 
     Refuses an empty value (unless ``allow_empty``: empty then means "no file"), an
     existing directory and anything that is not a regular file (``/dev/full``, a FIFO),
-    with :func:`accelcal_ros.filecheck.output_path_problem`'s reason.
+    with :func:`accelcal_ros.filecheck.existing_output_problem`'s reason.
     """
-    from accelcal_ros.filecheck import output_path_problem
+    from accelcal_ros.filecheck import existing_output_problem
 
     def check(value: Any) -> Optional[str]:
         if allow_empty and not str(value).strip():
             return None
         if not str(value).strip():
             return 'must not be empty: give the path of the file to write'
-        return output_path_problem(str(value))
+        return existing_output_problem(str(value))
     return check
 
 

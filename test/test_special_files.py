@@ -281,12 +281,12 @@ def test_bag_with_a_fifo_inside_is_refused(tmp_path):
         BagReader(tmp_path / 'x.mcap')
 
 
-def test_output_path_problems_are_found_before_any_work(tmp_path):
+def test_existing_output_problems_are_found_before_any_work(tmp_path):
     """The check the nodes' output_file parameters use (empty, directory, device)."""
-    assert filecheck.output_path_problem(str(tmp_path / 'new.yaml')) is None
-    assert 'character device' in filecheck.output_path_problem('/dev/full')
-    assert 'directory' in filecheck.output_path_problem(str(tmp_path))
-    assert 'empty' in filecheck.output_path_problem('')
+    assert filecheck.existing_output_problem(str(tmp_path / 'new.yaml')) is None
+    assert 'character device' in filecheck.existing_output_problem('/dev/full')
+    assert 'directory' in filecheck.existing_output_problem(str(tmp_path))
+    assert 'empty' in filecheck.existing_output_problem('')
     assert isinstance(AccelcalError(), Exception)
 
 
