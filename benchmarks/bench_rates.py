@@ -126,6 +126,7 @@ class Probe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.latest = None
+        self._clients = {}
         self.node.create_subscription(Float64MultiArray, COUNTS_TOPIC, self._on_counts, 10)
         self._stop = False
         self._thread = threading.Thread(target=self._spin, daemon=True)
@@ -152,17 +153,19 @@ class Probe:
         """Call a std_srvs/Trigger service; returns the response."""
         from std_srvs.srv import Trigger
 
-        client = self.node.create_client(Trigger, service)
-        try:
-            if not client.wait_for_service(timeout_sec=timeout):
-                raise TimeoutError(f'{service} did not appear')
-            future = client.call_async(Trigger.Request())
-            deadline = time.monotonic() + timeout
-            while not future.done() and time.monotonic() < deadline:
-                time.sleep(0.01)
-            return future.result()
-        finally:
-            self.node.destroy_client(client)
+        # One client per service for the probe's life: destroying one here, while the spin
+        # thread may be waiting on it, races rclpy's wait set; destroy_node() in close(),
+        # after that thread has ended, frees them.
+        client = self._clients.get(service)
+        if client is None:
+            client = self._clients[service] = self.node.create_client(Trigger, service)
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f'{service} did not appear')
+        future = client.call_async(Trigger.Request())
+        deadline = time.monotonic() + timeout
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return future.result()
 
     def close(self):
         """Stop the probe."""
