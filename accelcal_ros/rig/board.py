@@ -18,6 +18,13 @@ from accelcal_ros.errors import InputError
 import numpy as np
 from numpy.typing import ArrayLike
 
+#: most inner corners along one side of the board (OpenCV's detector overflows, even
+#: crashes, for counts whose product passes 2**31; real printed boards have < 30)
+MAX_INNER_CORNERS = 100
+#: smallest square side (m) a calibration is solved for (below, the extrinsics lose
+#: their scale and come out wrong; printed boards have squares of millimetres and up)
+MIN_SQUARE_M = 1e-3
+
 
 @dataclass(frozen=True)
 class Board:
@@ -28,16 +35,19 @@ class Board:
     square_m: float
 
     def __post_init__(self) -> None:
-        """Check the counts (>= 3, one even and one odd) and the square size (> 0)."""
+        """Check the counts (3 .. 100, one even and one odd) and the square size (>= 1 mm)."""
         if self.cols < 3 or self.rows < 3:
             raise InputError(f'board {self.cols}x{self.rows}: needs at least 3x3 inner corners')
         if (self.cols + self.rows) % 2 == 0:
             raise InputError(f'board {self.cols}x{self.rows}: one count of inner corners must '
                              'be even and the other odd (e.g. 9x6), otherwise a half turn of '
                              'the board looks the same and its orientation is ambiguous')
-        if not np.isfinite(self.square_m) or self.square_m <= 0:
-            raise InputError(f'board square size must be a positive length in metres, '
-                             f'got {self.square_m!r}')
+        if max(self.cols, self.rows) > MAX_INNER_CORNERS:
+            raise InputError(f'board {self.cols}x{self.rows}: at most {MAX_INNER_CORNERS} '
+                             'inner corners per side')
+        if not np.isfinite(self.square_m) or self.square_m < MIN_SQUARE_M:
+            raise InputError(f'board square size must be a length of at least {MIN_SQUARE_M:g} '
+                             f'm, got {self.square_m!r}')
 
     @property
     def pattern_size(self) -> tuple:
@@ -109,4 +119,8 @@ def parse_board_size(text: str) -> Tuple[int, int]:
     match = re.fullmatch(r'\s*(\d+)\s*[xX]\s*(\d+)\s*', str(text))
     if not match:
         raise InputError(f'board size must be COLSxROWS inner corners (e.g. 9x6), got {text!r}')
-    return int(match.group(1)), int(match.group(2))
+    cols, rows = int(match.group(1)), int(match.group(2))
+    if max(cols, rows) > MAX_INNER_CORNERS:
+        raise InputError(f'board {text.strip()}: at most {MAX_INNER_CORNERS} inner corners per '
+                         'side')
+    return cols, rows

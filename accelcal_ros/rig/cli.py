@@ -29,8 +29,8 @@ def register(subparsers: argparse._SubParsersAction,
     _add_bag_arguments(p)
     p.add_argument('--board', required=True, metavar='COLSxROWS',
                    help='inner corners as OpenCV counts them, e.g. 9x6 (one even, one odd)')
-    p.add_argument('--square-m', required=True, type=float_in(0.0, 10.0, low_open=True),
-                   help='square side (m)')
+    p.add_argument('--square-m', required=True, type=float_in(0.001, 10.0),
+                   help='square side (m, 0.001 .. 10)')
     p.add_argument('-o', '--output', required=True, help='rig file (YAML) to write')
     p.add_argument('--intrinsics', nargs='+', default=[], metavar='FILE',
                    help='camera_info YAML files (ROS camera_calibration) held fixed; matched '

@@ -30,6 +30,14 @@ def test_board_needs_one_even_and_one_odd_count():
     with pytest.raises(InputError, match='COLSxROWS'):
         parse_board_size('9 by 6')
     assert parse_board_size(' 11x8 ') == (11, 8)
+    # OpenCV's detector segfaults once cols * rows passes 2**31: refused before it
+    for text in ('46341x46342', '3x2147483648', '101x100'):
+        with pytest.raises(InputError, match='at most 100 inner corners'):
+            parse_board_size(text)
+    with pytest.raises(InputError, match='at most 100 inner corners'):
+        Board(101, 100, 0.03)
+    with pytest.raises(InputError, match='at least 0.001 m'):
+        Board(9, 6, 1e-9)
 
 
 def test_detected_corners_match_the_projection_in_every_camera(scene):
