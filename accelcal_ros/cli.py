@@ -241,6 +241,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'accelcal: error: input is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} '
               f'at offset {exc.start} of a block); is this the right file?', file=sys.stderr)
         return 1
+    except MemoryError as exc:  # numpy's 'Unable to allocate 2.5 GiB ...' (not a bug)
+        print(f'accelcal: error: out of memory ({_one_line(exc)}); ask for a smaller output '
+              'or fewer trials', file=sys.stderr)
+        return 1
     except OSError as exc:
         where = f'{exc.filename}: ' if exc.filename else ''
         print(f'accelcal: error: {where}{exc.strerror or exc}', file=sys.stderr)

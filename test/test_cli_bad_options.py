@@ -155,6 +155,27 @@ def test_unexpected_exception_is_one_line_with_a_hint(monkeypatch, capsys):
         main(['error-budget'])
 
 
+def test_out_of_memory_is_one_line_not_an_internal_error(monkeypatch, capsys):
+    """numpy's MemoryError (a 30000x30000 panorama on a small machine) is the user's to fix."""
+    def hungry(args):
+        raise MemoryError('Unable to allocate 2.51 GiB for an array with shape (30000, 30000)')
+
+    real = cli.build_parser
+
+    def patched():
+        parser = real()
+        for _, sub in _subcommands(parser):
+            sub.set_defaults(handler=hungry)
+        return parser
+
+    monkeypatch.setattr(cli, 'build_parser', patched)
+    assert main(['error-budget']) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert err.startswith('accelcal: error: out of memory') and '2.51 GiB' in err
+    assert 'internal error' not in err
+
+
 def test_the_installed_command_never_prints_a_traceback(tmp_path):
     """The real process: bad option (2), missing file (1), help mentions ACCELCAL_DEBUG."""
     env = dict(os.environ)
