@@ -156,7 +156,7 @@ def test_unexpected_exception_is_one_line_with_a_hint(monkeypatch, capsys):
 
 
 def test_out_of_memory_is_one_line_not_an_internal_error(monkeypatch, capsys):
-    """numpy's MemoryError (a 30000x30000 panorama on a small machine) is the user's to fix."""
+    """A MemoryError (numpy: a 30000x30000 panorama on a small machine) is the user's to fix."""
     def hungry(args):
         raise MemoryError('Unable to allocate 2.51 GiB for an array with shape (30000, 30000)')
 

@@ -25,8 +25,12 @@ the others keep working.
 Who may look: the server binds to 127.0.0.1 unless ``--host`` says otherwise; on any
 other address a token is required (``--token``, else one is generated and printed), and
 every request -- the page, the WebSocket -- must carry it (``?token=...`` or
-``Authorization: Bearer ...``), 401 otherwise. TLS: put the server behind a reverse proxy
-(nginx, Caddy) that terminates HTTPS and forwards WebSocket upgrades.
+``Authorization: Bearer ...``), 401 otherwise. Other web pages the user visits get
+nothing either (:func:`request_problem`, 403): a request whose ``Origin`` is not this
+server's own (cross-site WebSocket hijacking) is refused, and without a token a request
+whose ``Host`` is not a loopback name (DNS rebinding) is too. TLS: put the server behind a
+reverse proxy (nginx, Caddy) that terminates HTTPS, forwards WebSocket upgrades and sets
+``X-Forwarded-Host`` (Caddy does; nginx: ``proxy_set_header X-Forwarded-Host $host``).
 """
 import asyncio
 import hmac
@@ -39,7 +43,7 @@ import socket
 import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
-from urllib.parse import quote
+from urllib.parse import quote, urlsplit
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.jpeg import encode_jpeg
@@ -83,6 +87,67 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+def _hostname(netloc: str) -> str:
+    """Return the host of ``host[:port]`` (brackets of an IPv6 address dropped)."""
+    try:
+        return (urlsplit(f'//{netloc}').hostname or '').lower()
+    except ValueError:
+        return ''
+
+
+def request_problem(headers: Any, host: str, token_required: bool) -> Optional[str]:
+    """
+    Return why a request must be refused (403) before its token is looked at, or None.
+
+    ``headers``: the request's headers; ``host``: its ``Host``. The site the browser
+    shows is ``X-Forwarded-Host`` when a proxy set it (a browser cannot set that header
+    on a WebSocket, nor on a cross-site request without a CORS preflight, which this
+    server never grants), else ``Host``. ``Origin``, which a browser sends on every
+    WebSocket and cross-site request, must name that site: another page's script gets
+    nothing (cross-site WebSocket hijacking). Without a token (``token_required`` False,
+    a loopback server) ``Host`` must also be a loopback name unless a proxy forwarded the
+    request: a DNS-rebinding page reaches 127.0.0.1 under its own host name.
+    """
+    forwarded = headers.get('X-Forwarded-Host', '').split(',')[0].strip()
+    site = (forwarded or host).lower()
+    if not token_required and not forwarded and not is_loopback(_hostname(host)):
+        return (f'403: Host {host!r} is not a loopback name; this server answers only '
+                'http://127.0.0.1 or http://localhost (a guard against DNS rebinding)\n')
+    origin = headers.get('Origin')
+    if origin is not None:
+        try:
+            netloc = urlsplit(origin).netloc.lower()
+        except ValueError:
+            netloc = ''
+        if netloc != site:
+            return (f'403: a request from the page {origin!r} is refused; only this '
+                    f"server's own page ({site}) may talk to it\n")
+    return None
+
+
+def _not_a_client_fault(record: Any) -> bool:
+    """Drop aiohttp's traceback of a malformed request (answered 400): a logging filter."""
+    from aiohttp.http_exceptions import HttpProcessingError
+
+    error = record.exc_info[1] if record.exc_info else None
+    return not isinstance(error, HttpProcessingError)
+
+
+def quiet_bad_requests() -> None:
+    """
+    Keep aiohttp from printing a traceback for each malformed request (once per process).
+
+    A 20 kB header line, a 10 kB URL or ``Content-Length: -5`` is answered 400 by aiohttp,
+    which also logs the parser's exception with its traceback on ``aiohttp.server``; that
+    is the client's fault, not the server's, and it says nothing the 400 does not.
+    """
+    import logging
+
+    server_log = logging.getLogger('aiohttp.server')
+    if _not_a_client_fault not in server_log.filters:
+        server_log.addFilter(_not_a_client_fault)
 
 
 def page_url(host: str, port: int, token: Optional[str] = None) -> str:
@@ -211,6 +276,9 @@ class ViewServer:
 
         @web.middleware
         async def auth(request: Any, handler: Any) -> Any:
+            problem = request_problem(request.headers, request.host, self.token is not None)
+            if problem:
+                return web.Response(status=403, text=problem)
             if not self._authorised(request):
                 return web.Response(status=401, text='401: this server needs its token '
                                     '(?token=... or Authorization: Bearer ...)\n')
@@ -415,6 +483,7 @@ class ViewServer:
         """
         from aiohttp import web
 
+        quiet_bad_requests()
         self._runner = web.AppRunner(self.app(), handle_signals=handle_signals)
         await self._runner.setup()
         site = web.TCPSite(self._runner, host, port)

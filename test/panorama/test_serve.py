@@ -386,6 +386,60 @@ def test_token_is_required_on_every_request(scene):
         server.stop()
 
 
+def test_other_web_pages_get_nothing_cross_origin_and_dns_rebinding():
+    """Another site's script (its Origin) and a rebound host name (its Host) get 403."""
+    server = _server(scene=render.make_scene(360, 180, seed=1))
+    own = f'127.0.0.1:{server.port}'
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            with pytest.raises(aiohttp.WSServerHandshakeError) as info:
+                await session.ws_connect(server.url + 'ws', origin='http://evil.example')
+            assert info.value.status == 403
+            for headers in ({'Origin': 'http://evil.example'}, {'Host': 'evil.example'},
+                            {'Host': f'evil.example:{server.port}',
+                             'Origin': f'http://evil.example:{server.port}'}):
+                reply = await session.get(server.url + 'status', headers=headers)
+                assert reply.status == 403, headers
+                assert 'refused' in await reply.text() or 'loopback' in await reply.text()
+            # the page's own socket, and a page behind a proxy that says where it is
+            ws = await session.ws_connect(server.url + 'ws', origin=f'http://{own}')
+            info, image = await _frame(ws)
+            assert image is not None
+            await ws.close()
+            behind = {'Origin': 'https://views.example', 'X-Forwarded-Host': 'views.example'}
+            assert (await session.get(server.url + 'status', headers=behind)).status == 200
+            for host in (f'localhost:{server.port}', f'[::1]:{server.port}'):
+                reply = await session.get(server.url + 'status', headers={'Host': host})
+                assert reply.status == 200, host
+
+    try:
+        asyncio.run(run())
+    finally:
+        server.stop()
+
+
+def test_a_malformed_request_is_400_without_a_traceback(scene, caplog):
+    """A 20 kB header line, a 10 kB URL, a negative length: 400 and nothing logged."""
+    import logging
+    import socket
+
+    server = _server(scene)
+    caplog.set_level(logging.DEBUG, logger='aiohttp')
+    requests = [b'GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX: ' + b'a' * 20000 + b'\r\n\r\n',
+                b'GET /' + b'a' * 10000 + b' HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n',
+                b'POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: -5\r\n\r\n']
+    try:
+        for request in requests:
+            with socket.create_connection(('127.0.0.1', server.port), timeout=10) as sock:
+                sock.sendall(request)
+                assert sock.recv(64).split()[1].startswith(b'4'), request[:40]
+        time.sleep(0.2)
+    finally:
+        server.stop()
+    assert not [r for r in caplog.records if r.exc_info], caplog.text
+
+
 def test_loopback_and_bad_server_arguments():
     """Only loopback addresses count as local; no frames or a bad fps is refused."""
     assert is_loopback('127.0.0.1') and is_loopback('::1') and is_loopback('localhost')
