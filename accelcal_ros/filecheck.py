@@ -15,12 +15,16 @@ from typing import IO, Iterator, Optional
 from accelcal_ros.errors import FileFormatError, PathLike
 
 #: most bytes read from one file, per format (a file beyond is refused before it is read
-#: whole): YAML files this package writes (calibration, rig, boresight, camera_info) are
-#: kilobytes; a CSV (an accelerometer recording at 3200 Hz for an hour is ~0.5 GB), a
-#: point cloud and an image are bounded far above anything real and below what fits in
-#: memory. Keys are the ``kind`` argument of :func:`read_input_bytes`.
+#: whole): the YAML files this package writes (calibration ~3 kB + ~70 B per captured
+#: position, rig ~2 kB per camera, boresight, camera_info, reports) are kilobytes; the
+#: largest YAML it reads is a rosbag2 ``metadata.yaml`` (~1.1 kB per topic, ~190 B per split
+#: file: 1000 topics and 4000 split files are 1.4 MB), hence 4 MiB; what bounds the parse
+#: time (about a second) is ``textformats.MAX_YAML_SEPARATORS``. A CSV (an accelerometer
+#: recording at 3200 Hz for an hour is ~0.5 GB), a point cloud and an image are bounded far
+#: above anything real and below what fits in memory. Keys are the ``kind`` argument of
+#: :func:`read_input_bytes`.
 SIZE_LIMITS = {
-    'yaml': 16 * 2**20,
+    'yaml': 4 * 2**20,
     'csv': 1 * 2**30,
     'point cloud': 2 * 2**30,
     'image': 512 * 2**20,

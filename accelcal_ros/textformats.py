@@ -1,10 +1,12 @@
 """
 The package's YAML and CSV text formats: read with clear errors, written in one style.
 
-:func:`load_yaml_mapping` (a mapping at the top, at most :data:`MAX_YAML_NODES` values after
-aliases), :func:`yaml_number` (a YAML scalar as a number: bools are not numbers, YAML 1.2
-exponents are), :func:`dump_yaml` (insertion order, numeric lists in flow style) and
-:func:`read_numeric_csv` (a header, numbers only, errors naming file and line). Every read
+:func:`load_yaml_mapping` (a mapping at the top, no key twice, at most
+:data:`MAX_YAML_SEPARATORS` separators before the parse and :data:`MAX_YAML_NODES` values
+after aliases, no integer beyond a double), :func:`yaml_number` (a YAML scalar as a number:
+bools are not numbers, YAML 1.2 exponents are), :func:`dump_yaml` (insertion order,
+numeric lists in flow style) and :func:`read_numeric_csv` (a header, numbers only, errors
+naming file and line). Every read
 goes through :func:`accelcal_ros.fileio.read_input_text` (regular files only, size limits,
 inputs guarded).
 """
@@ -13,6 +15,7 @@ import io
 import math
 import os
 import re
+import sys
 from typing import Any, Dict, Optional, Sequence, TYPE_CHECKING
 
 from accelcal_ros.errors import FileFormatError, PathLike
@@ -23,12 +26,62 @@ if TYPE_CHECKING:  # numpy is imported where a CSV is read (keeps this module li
     import numpy as np
 
 
+#: PyYAML's C parser (libyaml) when built with it: the same safe constructor, about five
+#: times faster than the pure-Python parser
+_SafeLoaderBase = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
+class _DuplicateKey(Exception):
+    """A mapping names a key twice (raised from inside the loader)."""
+
+    def __init__(self, key: Any, line: int, first_line: int):
+        super().__init__(key, line, first_line)
+        self.key, self.line, self.first_line = key, line, first_line
+
+
+class _StrictLoader(_SafeLoaderBase):  # type: ignore[valid-type, misc]
+    """The safe loader that refuses a key given twice in one mapping (PyYAML keeps the last)."""
+
+    def construct_mapping(self, node, deep=False):
+        """Check the mapping's own keys for duplicates, then construct it as SafeLoader does."""
+        if isinstance(node, yaml.MappingNode):
+            seen: Dict[Any, int] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == 'tag:yaml.org,2002:merge':
+                    continue  # '<<: *base' merges; its keys may be overridden
+                key = self.construct_object(key_node, deep=True)
+                line = key_node.start_mark.line + 1
+                try:
+                    first = seen.get(key)
+                except TypeError:
+                    continue  # an unhashable key: the constructor refuses it
+                if first is not None:
+                    raise _DuplicateKey(key, line, first)
+                seen[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+
 def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
-    """Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise."""
+    """
+    Load a YAML file whose top level must be a mapping; raise FileFormatError otherwise.
+
+    Refused with the line: invalid YAML, a key given twice in one mapping (PyYAML would keep
+    the last silently), more than :data:`MAX_YAML_SEPARATORS` separators before parsing
+    (bounds the parse time: about a second at the limit), more than :data:`MAX_YAML_NODES`
+    values after aliases, an integer too large for a double (naming the key).
+    """
     path = os.fspath(path)
     text = read_input_text(path, what, kind='yaml')
+    separators = _separator_count(text)
+    if separators > MAX_YAML_SEPARATORS:
+        raise FileFormatError(path, f'{what} holds more than {MAX_YAML_SEPARATORS} YAML '
+                              'separators (, : - ? [ { or line breaks); not a file this '
+                              'package reads')
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a safe loader)
+    except _DuplicateKey as exc:
+        raise FileFormatError(path, f'{what} gives key {_shown(exc.key)} twice (first on line '
+                              f'{exc.first_line}); remove one', exc.line) from None
     except yaml.YAMLError as exc:
         line = None
         mark = getattr(exc, 'problem_mark', None)
@@ -45,7 +98,49 @@ def load_yaml_mapping(path: PathLike, what: str = 'file') -> Dict[Any, Any]:
     if _expanded_size_exceeds(data, MAX_YAML_NODES):
         raise FileFormatError(path, f'{what} expands to more than {MAX_YAML_NODES} values '
                               '(nested aliases?); not a file this package writes')
+    where = _too_large_integer(data)
+    if where is not None:
+        raise FileFormatError(path, f'"{where}" in the {what} holds a value too large for a '
+                              f'number (beyond {sys.float_info.max:.4g})')
     return data
+
+
+def _shown(value: Any) -> str:
+    shown = repr(value)
+    return shown if len(shown) <= 60 else shown[:57] + '...'
+
+
+def _separator_count(text: str) -> int:
+    """
+    Count the characters that separate or open YAML nodes: ``, : - ? [ {`` and line breaks.
+
+    A node needs at least one of them, and a flow mapping of bare keys (``{a, b}``) makes
+    two nodes per comma: at most about twice this many values, a bound known before the
+    parse (the count reads the text once per character, milliseconds for the size limit).
+    """
+    return sum(text.count(c) for c in ',:-?[{\n')
+
+
+def _too_large_integer(data: Any) -> Optional[str]:
+    """Return where (``scale[0]``, ``a.b``) an integer beyond a double sits, else None."""
+    stack = [('', data)]
+    seen = set()  # containers shared through aliases are looked at once
+    while stack:
+        where, item = stack.pop()
+        if isinstance(item, (dict, list, tuple)):
+            if id(item) in seen:
+                continue
+            seen.add(id(item))
+        if isinstance(item, dict):
+            stack.extend((f'{where}.{k}' if where else str(k), v) for k, v in item.items())
+        elif isinstance(item, (list, tuple)):
+            stack.extend((f'{where}[{k}]', v) for k, v in enumerate(item))
+        elif isinstance(item, int) and not isinstance(item, bool) and abs(item) > _MAX_INT:
+            return where
+    return None
+
+
+_MAX_INT = int(sys.float_info.max)
 
 
 _YAML12_NUMBER = re.compile(r'^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$')
@@ -64,8 +159,8 @@ def yaml_number(value: Any) -> Optional[float]:
     if isinstance(value, (int, float)):
         try:
             return float(value)
-        except OverflowError:
-            return math.copysign(math.inf, value)
+        except OverflowError:  # an int beyond a double (math.copysign would raise too)
+            return math.inf if value > 0 else -math.inf
     if isinstance(value, str) and _YAML12_NUMBER.match(value.strip()):
         return float(value)
     return None
@@ -73,6 +168,12 @@ def yaml_number(value: Any) -> Optional[float]:
 
 #: most values (after expanding YAML aliases) a file may hold: a guard against alias bombs
 MAX_YAML_NODES = 1_000_000
+
+#: most separators (:func:`_separator_count`) a YAML file may hold before it is parsed: at
+#: most ~200000 values, about a second to parse with libyaml. The package's own files hold
+#: hundreds to a few thousand (a calibration ~8 per captured position); a rosbag2
+#: ``metadata.yaml`` ~50 per topic and ~12 per split file (1000 topics and 4000 files fit).
+MAX_YAML_SEPARATORS = 100_000
 
 
 def _expanded_size_exceeds(data, limit):

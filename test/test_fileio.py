@@ -223,3 +223,56 @@ def test_yaml_alias_bomb_and_deep_nesting_are_refused(tmp_path):
     deep.write_text('a: ' + '[' * 50000 + ']' * 50000 + '\n')
     with pytest.raises(FileFormatError, match='not valid YAML'):
         load_yaml_mapping(deep)
+
+
+def test_a_dense_yaml_under_the_size_limit_is_refused_before_the_parse(tmp_path):
+    """Values packed two bytes each: refused at once (was 22 s and 700 MB for 2 MB)."""
+    import time
+
+    from accelcal_ros.filecheck import SIZE_LIMITS
+    from accelcal_ros.textformats import MAX_YAML_SEPARATORS
+
+    assert SIZE_LIMITS['yaml'] <= 4 * 2**20
+    path = tmp_path / 'dense.yaml'
+    path.write_text('scale: [' + '1,' * (SIZE_LIMITS['yaml'] // 2 - 10) + '1]\n')
+    start = time.monotonic()
+    with pytest.raises(FileFormatError, match=f'more than {MAX_YAML_SEPARATORS} YAML sep'):
+        load_yaml_mapping(path, 'calibration file')
+    assert time.monotonic() - start < 2.0
+    path.write_text('scale: [' + '1,' * (MAX_YAML_SEPARATORS - 10) + '1]\n')
+    assert len(load_yaml_mapping(path)['scale']) == MAX_YAML_SEPARATORS - 9  # at the limit
+
+
+def test_yaml_key_given_twice_is_refused_with_its_line(tmp_path):
+    """Two equal keys (PyYAML keeps the last): refused, naming the key and both lines."""
+    path = tmp_path / 'cal.yaml'
+    path.write_text('scale: [1, 1, 1]\nbias: [0, 0, 0]\nnested:\n  a: 1\n  a: 2\n')
+    with pytest.raises(FileFormatError, match="key 'a' twice .first on line 4") as info:
+        load_yaml_mapping(path)
+    assert info.value.line == 5
+    path.write_text('scale: [1, 1, 1]\nbias: [0, 0, 0]\nscale: [2, 2, 2]\n')
+    with pytest.raises(FileFormatError, match="key 'scale' twice"):
+        load_yaml_mapping(path)
+    path.write_text('base: &b {x: 1, y: 2}\nd:\n  <<: *b\n  x: 3\n')  # a merge overrides
+    assert load_yaml_mapping(path)['d'] == {'x': 3, 'y': 2}
+
+
+def test_integer_beyond_a_double_names_its_key(tmp_path, capsys):
+    """scale: [1e400 as digits]: 'value too large' naming the key, not an internal error."""
+    from accelcal_ros.cli import main
+    from accelcal_ros.textformats import yaml_number
+
+    assert yaml_number(10 ** 400) == float('inf') and yaml_number(-10 ** 400) < 0
+    path = tmp_path / 'cal.yaml'
+    path.write_text('model: diagonal\nscale: [1' + '0' * 400 + ', 1, 1]\nbias: [0, 0, 0]\n')
+    with pytest.raises(FileFormatError, match=r'"scale\[0\]" in the file holds a value too'):
+        load_yaml_mapping(path)
+    boresight = tmp_path / 'bs.yaml'
+    boresight.write_text('rpy_deg: [1' + '0' * 400 + ', 0, 0]\n')
+    (tmp_path / 'cloud.pcd').write_text('x')
+    status = main(['georeference', '--cloud', str(tmp_path / 'cloud.pcd'), '--poses',
+                   str(tmp_path / 'poses.csv'), '--boresight', str(boresight),
+                   '-o', str(tmp_path / 'out.ply')])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1, err
+    assert 'rpy_deg[0]' in err[0] and 'too large' in err[0], err
