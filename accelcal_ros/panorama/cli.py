@@ -130,7 +130,7 @@ def _stitch(args):
     from accelcal_ros.panorama.projection import PanoramaGeometry
     from accelcal_ros.panorama.stitch import Stitcher
 
-    if _is_bag_input(args):
+    if is_bag_input(args):
         return _stitch_bag(args)
     if args.roll is None or args.pitch is None:
         raise InputError('stitch needs --roll and --pitch for image files (a BAG takes '
@@ -190,6 +190,34 @@ def _is_bag_input(args):
     from accelcal_ros.recording.bag import is_bag
 
     return len(args.images) == 1 and is_bag(args.images[0])
+
+
+#: options that only a BAG input reads (``dest``, option), and those only image files read
+_BAG_ONLY = (('image_topics', '--images'), ('attitude', '--attitude'), ('imu', '--imu'),
+             ('calibration', '--calibration'), ('fps', '--fps'))
+_IMAGES_ONLY = (('roll', '--roll'), ('pitch', '--pitch'))
+
+
+def is_bag_input(args):
+    """
+    Return True when ``stitch``/``view``/``serve`` read a BAG, False for image files.
+
+    Refuses (:class:`InputError`) an option the input would ignore: ``--roll``/``--pitch``
+    with a BAG (its attitude comes from ``--attitude`` or ``--imu``), or ``--images``,
+    ``--attitude``, ``--imu``, ``--calibration``, ``--fps`` with image files. Silently
+    ignoring ``--roll 30`` on a bag gave frames identical to ``--roll 0``.
+    """
+    from accelcal_ros.errors import InputError
+
+    bag = _is_bag_input(args)
+    unread = [flag for dest, flag in (_IMAGES_ONLY if bag else _BAG_ONLY)
+              if getattr(args, dest, None) is not None]
+    if unread:
+        raise InputError(f'{" and ".join(unread)} {"are" if len(unread) > 1 else "is"} not '
+                         + ('read for a BAG, which takes its attitude from --attitude or '
+                            '--imu' if bag else 'read for image files (they are for a BAG '
+                            'input)') + ': leave it out')
+    return bag
 
 
 def _stitch_bag(args):

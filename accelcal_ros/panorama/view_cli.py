@@ -140,10 +140,10 @@ def _make_view(args: Any, rig: Any, layout: Any) -> Any:
 
 def _view(args: Any) -> int:
     from accelcal_ros.camera.rig import load_rig
-    from accelcal_ros.panorama.cli import _is_bag_input, read_image, write_image
+    from accelcal_ros.panorama.cli import is_bag_input, read_image, write_image
     from accelcal_ros.panorama.view import ViewMosaic
 
-    if _is_bag_input(args):
+    if is_bag_input(args):
         return _view_bag(args)
     if args.view_path:
         raise InputError('--path moves the view over a BAG; for image files give '
@@ -284,9 +284,9 @@ class _NoSink:
 
 def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
     """Return ``(frame sets, fps)`` of the command's images or bag."""
-    from accelcal_ros.panorama.cli import _is_bag_input, read_image
+    from accelcal_ros.panorama.cli import is_bag_input, read_image
 
-    if not _is_bag_input(args):
+    if not is_bag_input(args):
         if args.roll is None or args.pitch is None:
             raise InputError('serve needs --roll and --pitch for image files (a BAG takes '
                              '--attitude or --imu)')

@@ -194,6 +194,25 @@ def test_view_bad_path_and_missing_attitude(setup, tmp_path, capsys):
     assert '--roll' in capsys.readouterr().err
 
 
+@pytest.mark.parametrize('command', ['stitch', 'view', 'serve'])
+def test_an_option_the_input_would_ignore_is_refused(setup, tmp_path, capsys, command):
+    """--roll on a bag (its attitude is the bag's), --imu/--fps on image files: refused."""
+    folder, paths, _, bag = setup
+    rig = ['--rig', str(folder / 'rig.yaml')]
+    out = [] if command == 'serve' else ['-o', str(tmp_path / 'out.png')]
+    bag_args = [str(bag), *rig, '--images', *TOPICS, '--attitude', '/attitude']
+    for argv, words in (([*bag_args, '--roll', '30', '--pitch', '30'], '--roll and --pitch'),
+                        ([*bag_args, '--pitch', '5'], '--pitch is not read for a BAG'),
+                        ([*rig, '--roll', '0', '--pitch', '0', '--imu', '/imu', *paths],
+                         '--imu is not read for image files'),
+                        ([*rig, '--roll', '0', '--pitch', '0', '--fps', '5', *paths],
+                         '--fps is not read for image files')):
+        assert main([command, *argv, *out]) == 1, argv
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and words in err, err
+    assert not (tmp_path / 'out.png').exists()
+
+
 def test_study_roi_quick(capsys, tmp_path):
     """The false roll follows 2 deg x sin(azimuth); the rendering agrees with the closed form."""
     out = tmp_path / 'roi.json'
