@@ -208,7 +208,7 @@ def _apply_to_bag(args, model):
                              'rosbag2)')
         out_topic = args.corrected_topic or topic
         topics = bag.topics()
-        corrected = 0
+        corrected = skipped = 0
         with BagWriter(args.output, fmt) as writer:
             for name in sorted(topics):
                 conn = bag.connection_of(name)
@@ -220,17 +220,59 @@ def _apply_to_bag(args, model):
             for message in bag.messages(sorted(topics), decode=[topic]):
                 if message.topic == topic:
                     acc = message.msg.linear_acceleration
-                    fixed = model.correct(np.array([[acc.x, acc.y, acc.z]])
-                                          / STANDARD_GRAVITY)[0] * STANDARD_GRAVITY
-                    acc.x, acc.y, acc.z = (float(v) for v in fixed)
-                    writer.write(out_topic, message.receive_ns, message.msg)
-                    corrected += 1
+                    raw = np.array([[acc.x, acc.y, acc.z]])
+                    if _usable(raw / STANDARD_GRAVITY)[0]:  # else skipped and counted
+                        fixed = model.correct(raw / STANDARD_GRAVITY)[0] * STANDARD_GRAVITY
+                        acc.x, acc.y, acc.z = (float(v) for v in fixed)
+                        writer.write(out_topic, message.receive_ns, message.msg)
+                        corrected += 1
+                    else:
+                        skipped += 1
                     if out_topic == topic:
                         continue
                 writer.write_raw(message.topic, message.receive_ns, message.raw)
+            if not corrected:
+                raise InputError(f'{args.recording}: no usable {topic} sample (all {skipped} '
+                                 'have a NaN, infinite or impossible linear_acceleration); '
+                                 'nothing written')
     print(f'wrote {args.output}: {corrected} calibrated {out_topic} messages beside '
-          f'{len(topics) - (out_topic == topic)} copied topic(s)')
+          f'{len(topics) - (out_topic == topic)} copied topic(s){_skipped_note(skipped)}')
     return 0
+
+
+def _skipped_note(skipped: int) -> str:
+    """Return the summary's note on skipped impossible samples ('' when none)."""
+    from accelcal_ros.sensor.tilt import MAX_FORCE_G
+
+    return (f'; {skipped} sample(s) with a NaN, infinite or impossible (beyond '
+            f'{MAX_FORCE_G:g} g) value skipped, not written' if skipped else '')
+
+
+def _usable(accel_g):
+    """Which raw readings (N, 3) g are finite and within ``tilt.MAX_FORCE_G`` per axis."""
+    from accelcal_ros.sensor.tilt import MAX_FORCE_G
+    import numpy as np
+
+    with np.errstate(invalid='ignore'):
+        return np.all(np.abs(accel_g) <= MAX_FORCE_G, axis=-1)
+
+
+def _finite_samples(recording: str, t, accel_g):
+    """
+    Return ``(t, accel_g, skipped)`` without the samples with a NaN, infinite or absurd value.
+
+    As ``calibrate`` rejects them: skipped and counted, never corrected into invented values
+    (an infinity on one axis would spread to the others through the misalignment); no usable
+    sample is an InputError.
+    """
+    from accelcal_ros.errors import InputError
+    import numpy as np
+
+    usable = _usable(accel_g)
+    if not usable.any():
+        raise InputError(f'{recording}: no usable sample (all {len(t)} have a NaN, infinite '
+                         'or impossible value); nothing written')
+    return t[usable], accel_g[usable], int(np.count_nonzero(~usable))
 
 
 def _calibrate(args):
@@ -301,9 +343,10 @@ def _apply(args):
     if _writes_bag(args):
         return _apply_to_bag(args, model)
     t, accel_g = _read_recording_of(args)
+    t, accel_g, skipped = _finite_samples(args.recording, t, accel_g)
     _warn_if_calibration_misfits(model, t, accel_g)
     save_recording(args.output, t, model.correct(accel_g) * STANDARD_GRAVITY)
-    print(f'wrote {len(t)} calibrated samples to {args.output}')
+    print(f'wrote {len(t)} calibrated samples to {args.output}{_skipped_note(skipped)}')
     return 0
 
 
@@ -314,8 +357,10 @@ def _attitude(args):
     from accelcal_ros.fileio import write_text_atomic
     from accelcal_ros.sensor.calibration_file import load_calibration
     from accelcal_ros.sensor.model import SensorModel
+    from accelcal_ros.sensor.tilt import MAX_FORCE_G, MIN_FORCE_G
     from accelcal_ros.sensor.tilt_filter import FilterSettings
-    from accelcal_ros.sensor.tilt_series import estimate_series, read_odometry_csv
+    from accelcal_ros.sensor.tilt_series import (estimate_series, odometry_coverage,
+                                                 read_odometry_csv)
     import numpy as np
 
     if args.every < 1:
@@ -343,8 +388,20 @@ def _attitude(args):
                                 float(tilt_std), settings=settings,
                                 time_constant_s=args.time_constant_s,
                                 accel_threshold_g=args.accel_threshold_g)
-    print(f'note: {"gyro-aided" if gyro is not None else "accelerometer only"}'
-          f'{", odometry-aided" if odometry is not None else ""}', file=sys.stderr)
+    skipped = sum(est is None for est in estimates)
+    if skipped == len(estimates):
+        raise InputError(f'{args.recording}: no usable sample: all {skipped} are impossible '
+                         '(NaN or infinite, all zero, or a calibrated magnitude outside '
+                         f'{MIN_FORCE_G:g}..{MAX_FORCE_G:g} g); nothing written')
+    aided = ''
+    if odometry is not None:
+        share = odometry_coverage(t, odometry[0])
+        aided = ', odometry-aided' + (f' ({share:.0%} of the samples)' if share < 1 else '')
+    print(f'note: {"gyro-aided" if gyro is not None else "accelerometer only"}{aided}',
+          file=sys.stderr)
+    note = (f' ({skipped} impossible sample(s) skipped: NaN or infinite, all zero, or a '
+            f'calibrated magnitude outside {MIN_FORCE_G:g}..{MAX_FORCE_G:g} g)'
+            if skipped else '')
     lines = ['t,roll_deg,pitch_deg,roll_std_deg,pitch_std_deg,accelerating']
     deg = math.degrees
     for k, (ti, est) in enumerate(zip(t.tolist(), estimates)):
@@ -357,9 +414,11 @@ def _attitude(args):
     text = '\n'.join(lines) + '\n'
     if args.output:
         write_text_atomic(args.output, text)
-        print(f'wrote {len(lines) - 1} rows to {args.output}')
+        print(f'wrote {len(lines) - 1} rows to {args.output}{note}')
     else:
         sys.stdout.write(text)
+        if note:
+            print(f'note: {note[2:-1]}', file=sys.stderr)
     return 0
 
 

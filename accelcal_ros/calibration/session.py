@@ -27,6 +27,22 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 
+def _no_gravity(mean_g: np.ndarray) -> str:
+    """
+    Return why a still mean reading (g) is no gravity direction, or '' when it is one.
+
+    Below :data:`~accelcal_ros.sensor.tilt.MIN_FORCE_G` (an all-zero reading: a stuck or
+    unpowered sensor) it has no direction to capture.
+    """
+    from accelcal_ros.sensor.tilt import MIN_FORCE_G
+
+    magnitude = float(np.linalg.norm(mean_g))
+    if magnitude >= MIN_FORCE_G:
+        return ''
+    return (f'it reads |a| = {magnitude:.3f} g, below {MIN_FORCE_G:g} g: no gravity '
+            'direction (a stuck, unpowered or disconnected sensor?)')
+
+
 @dataclass
 class CalibratorConfig:
     """Session settings; each is a parameter of the ``calibration`` node."""
@@ -227,6 +243,10 @@ class Calibrator:
                 cap.samples, cap.duration_s = current.samples, current.duration_s
             return []
         stats = stats or seg.stats()
+        problem = _no_gravity(stats.accel_mean)
+        if problem:
+            self._close_segments.add(seg.segment_id)
+            return [f'still, but {problem}: not captured']
         direction = stats.accel_mean / np.linalg.norm(stats.accel_mean)
         k, angle = self._closest(direction)
         if k is not None and angle <= self.config.min_separation_deg:
@@ -270,7 +290,11 @@ class Calibrator:
         if existing is not None:
             raise CalibrationError(f'this position is already captured as position '
                                    f'{existing.index}; turn the sensor to a new orientation')
-        return self._add_capture(seg.stats(), seg.segment_id, automatic=False)
+        stats = seg.stats()
+        problem = _no_gravity(stats.accel_mean)
+        if problem:
+            raise CalibrationError(f'{problem}: not captured')
+        return self._add_capture(stats, seg.segment_id, automatic=False)
 
     # -- progress and fit --------------------------------------------------------------
     def captured_means(self) -> Tuple[np.ndarray, np.ndarray]:

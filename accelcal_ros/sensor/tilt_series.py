@@ -10,7 +10,10 @@ from :func:`~accelcal_ros.sensor.odometry_aid.accel_series_g`) or, with
 (:class:`~accelcal_ros.sensor.tilt.TiltEstimator`).
 
 Odometry files: CSV ``t,v,yaw_rate`` (s, m/s, rad/s), times increasing (a row going
-back in time is refused with its line: "odometry running backwards in time").
+back in time is refused with its line: "odometry running backwards in time"), speeds within
+:data:`MAX_ODOMETRY_SPEED_M_S` and yaw rates within :data:`MAX_ODOMETRY_YAW_RATE_RAD_S`
+(a corrupt value such as 1e308 is refused with its line). Odometry whose times do not
+overlap the recording's is refused (:func:`estimate_series`): it would aid nothing.
 """
 import math
 from typing import List, Optional, Sequence, Tuple
@@ -25,6 +28,10 @@ from numpy.typing import ArrayLike
 
 STOPPED_M_S = 0.05
 """Odometry speed below which the platform counts as stopped (gyro bias learning)."""
+MAX_ODOMETRY_SPEED_M_S = 100.0
+"""Largest odometry speed read (m/s, 360 km/h: beyond any ground vehicle carrying this)."""
+MAX_ODOMETRY_YAW_RATE_RAD_S = 10.0
+"""Largest odometry yaw rate read (rad/s, 573 deg/s: beyond any vehicle's turn)."""
 
 
 def read_odometry_csv(path: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -41,7 +48,25 @@ def read_odometry_csv(path: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         k = int(back[0]) + 1
         raise FileFormatError(path, f'odometry running backwards in time: t = {t[k]:.6f} s '
                               f'after {t[k - 1]:.6f} s (times must increase)', k + 2)
+    for name, bound, unit in (('v', MAX_ODOMETRY_SPEED_M_S, 'm/s'),
+                              ('yaw_rate', MAX_ODOMETRY_YAW_RATE_RAD_S, 'rad/s')):
+        beyond = np.flatnonzero(np.abs(columns[name]) > bound)
+        if beyond.size:
+            k = int(beyond[0])
+            raise FileFormatError(path, f'odometry {name} = {columns[name][k]:.6g} {unit} at '
+                                  f't = {t[k]:.6f} s is beyond {bound:g} {unit}: not a vehicle '
+                                  'odometry (a corrupt value?)', k + 2)
     return t, columns['v'], columns['yaw_rate']
+
+
+def odometry_coverage(t_s: ArrayLike, odometry_t_s: ArrayLike) -> float:
+    """Return the fraction (0..1) of the recording's samples within the odometry's time span."""
+    t = np.asarray(t_s, dtype=float).reshape(-1)
+    odo_t = np.asarray(odometry_t_s, dtype=float).reshape(-1)
+    if not t.size or not odo_t.size:
+        return 0.0
+    inside = (t >= odo_t[0]) & (t <= odo_t[-1])
+    return float(np.count_nonzero(inside)) / t.size
 
 
 def estimate_series(t_s: ArrayLike, accel_g: ArrayLike, gyro_rad_s: Optional[ArrayLike] = None,
@@ -89,6 +114,11 @@ def estimate_series(t_s: ArrayLike, accel_g: ArrayLike, gyro_rad_s: Optional[Arr
     moving: List[Optional[bool]] = [None] * t.size
     if odometry is not None:
         odo_t, odo_v, odo_r = (np.asarray(a, dtype=float).reshape(-1) for a in odometry)
+        if t.size and odo_t.size and odometry_coverage(t, odo_t) == 0.0:
+            raise InputError(f'the odometry (t {odo_t[0]:.6g} to {odo_t[-1]:.6g} s) does not '
+                             f'overlap the recording (t {t[0]:.6g} to {t[-1]:.6g} s): it would '
+                             'aid no sample; give the odometry of this recording (same time '
+                             'base)')
         series = accel_series_g(t, odo_t, odo_v, odo_r, lever_arm_m)
         speed = np.interp(t, odo_t, np.abs(odo_v))
         platform = [None if math.isnan(row[0]) else row for row in series.tolist()]

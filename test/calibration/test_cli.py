@@ -186,3 +186,91 @@ def test_outputs_it_cannot_write_under_their_name_are_refused(tmp_path, recordin
     assert main(['apply', str(path), '--calibration', str(calib), '--corrected-topic', '/x',
                  '-o', str(out)]) == 1
     assert 'applies to a bag output' in capsys.readouterr().err and not out.exists()
+
+
+def _one_error_line(capsys):
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('accelcal: error:'), captured.err
+    assert 'internal error' not in lines[0]
+    return lines[0]
+
+
+def test_apply_skips_and_counts_non_finite_samples(tmp_path, recording, capsys):
+    """One inf in ax wrote 'inf,nan,nan' with a RuntimeWarning; all NaN wrote NaN rows."""
+    import warnings
+
+    path, sim, t, raw = recording
+    calib = tmp_path / 'calib.yaml'
+    assert main(['calibrate', str(path), '-o', str(calib)]) == 0
+    capsys.readouterr()
+    bad = raw[:50].copy()
+    bad[5, 0] = np.inf
+    bad[9, 2] = np.nan
+    bad[11, 1] = 1e300
+    rec, out = tmp_path / 'bad.csv', tmp_path / 'out.csv'
+    save_recording(rec, t[:50], bad * G)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)
+        assert main(['apply', str(rec), '--calibration', str(calib), '-o', str(out)]) == 0
+    summary = capsys.readouterr().out
+    assert 'wrote 47 calibrated samples' in summary and '3 sample(s) with a NaN' in summary
+    written = np.loadtxt(out, delimiter=',', skiprows=1)
+    assert written.shape == (47, 4) and np.all(np.isfinite(written))
+    assert not np.isin(t[[5, 9, 11]].round(6), written[:, 0]).any()
+    for value in (np.nan, np.inf, 1e308):
+        save_recording(rec, t[:50], np.full((50, 3), value))
+        out.unlink(missing_ok=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter('error', RuntimeWarning)
+            assert main(['apply', str(rec), '--calibration', str(calib), '-o', str(out)]) == 1
+        assert 'no usable sample' in _one_error_line(capsys) and not out.exists()
+
+
+def test_calibrate_on_all_zero_samples_is_one_line_without_warning(tmp_path, capsys):
+    """A still dwell reading 0,0,0 was captured with a NaN direction (RuntimeWarning)."""
+    import warnings
+
+    rec, out = tmp_path / 'zero.csv', tmp_path / 'c.yaml'
+    t = np.arange(500) * 0.01
+    save_recording(rec, t, np.zeros((500, 3)))
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)
+        assert main(['calibrate', str(rec), '-o', str(out)]) == 1
+    captured = capsys.readouterr()
+    assert 'no gravity direction' in captured.out and '0 positions' in captured.err
+    assert captured.err.count('\n') == 1 and not out.exists()
+
+
+def test_apply_to_a_bag_skips_and_counts_non_finite_messages(tmp_path, recording, capsys):
+    """A NaN/inf Imu message is not 'calibrated' into the output bag; all bad: nothing."""
+    from accelcal_ros.recording.bag import BagReader
+    from accelcal_ros.recording.writer import BagWriter
+
+    path, sim, t, raw = recording
+    calib = tmp_path / 'calib.yaml'
+    assert main(['calibrate', str(path), '-o', str(calib)]) == 0
+
+    def bag_of(name, rows):
+        with BagWriter(tmp_path / name, 'mcap') as writer:
+            writer.add_topic('/imu/data_raw', 'sensor_msgs/Imu')
+            for k, row in enumerate(rows):
+                ns = 10**9 + k * 10**7
+                writer.write('/imu/data_raw', ns,
+                             writer.imu_message(ns, row, 'imu_link', topic='/imu/data_raw'))
+        return str(tmp_path / name)
+
+    rows = raw[:20] * G
+    rows[3, 0] = np.inf
+    rows[4, 2] = np.nan
+    capsys.readouterr()
+    assert main(['apply', bag_of('in', rows), '--calibration', str(calib), '-o',
+                 str(tmp_path / 'out')]) == 0
+    assert '18 calibrated' in capsys.readouterr().out
+    with BagReader(str(tmp_path / 'out')) as bag:
+        accel = [(m.msg.linear_acceleration.x, m.msg.linear_acceleration.y)
+                 for m in bag.messages(['/imu/data_raw'], decode=['/imu/data_raw'])]
+    assert len(accel) == 18 and np.all(np.isfinite(accel))
+    assert main(['apply', bag_of('nan', np.full((5, 3), np.nan)), '--calibration', str(calib),
+                 '-o', str(tmp_path / 'out2')]) == 1
+    assert 'no usable' in _one_error_line(capsys) and not (tmp_path / 'out2').exists()

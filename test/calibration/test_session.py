@@ -112,3 +112,20 @@ def test_nan_and_saturated_samples_reported_once_and_not_used():
     assert cal.detector.rejected_nan > 10 and cal.detector.rejected_saturated > 3
     result = cal.finish()
     np.testing.assert_allclose(result.sensor_model.bias, sim.truth.bias, atol=2e-3)
+
+
+def test_a_still_dwell_reading_zero_is_not_captured():
+    """An all-zero reading (stuck sensor) has no direction: said, not captured, no warning."""
+    import warnings
+
+    calibrator = Calibrator(CalibratorConfig())
+    calibrator.start()
+    t = np.arange(300) * 0.01
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)
+        events = calibrator.add_samples(t, np.zeros((300, 3)))
+        with pytest.raises(CalibrationError, match='no gravity direction'):
+            calibrator.capture_now()
+        events += calibrator.flush()
+    assert not calibrator.captures
+    assert [e for e in events if 'no gravity direction' in e]
