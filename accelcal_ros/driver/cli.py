@@ -12,13 +12,47 @@ charged) or a real one over I2C or SPI, e.g.::
 The rate is checked against the bus as the node does (refused with the reason unless
 ``--allow-unsustainable-rate``). ``accelcal selftest`` runs the ADXL345's self-test.
 """
-from typing import Any
+from typing import Any, Callable, Iterator, Tuple
 
 from accelcal_ros.cli_args import angle_deg, float_in, int_in, nonnegative_int
 
 
+MIN_RECORD_SAMPLES = 1
+"""Fewest samples ``--duration`` x ``--rate`` may give (a recording with none is unreadable)."""
+
+
+class _Accepted:
+    """argparse ``choices`` given by a test, shown as words ("invalid choice: 1.0 (choose...")."""
+
+    def __init__(self, accepts: Callable[[Any], bool], *shown: str) -> None:
+        self.accepts, self.shown = accepts, shown
+
+    def __contains__(self, value: object) -> bool:
+        return self.accepts(value)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.shown)
+
+
+def _bus_choices() -> Tuple[Tuple[float, ...], _Accepted, _Accepted]:
+    """
+    Return the ADXL345's ``(rates Hz, I2C addresses, bus speeds Hz)`` (the node's choices).
+
+    A bus speed is 0 (auto) or at least ``bus_timing.BUS_MIN_HZ``, as ``bus_speed_hz``.
+    """
+    from accelcal_ros.driver.adxl345_registers import VALID_ADDRESSES
+    from accelcal_ros.driver.bus_timing import BUS_MIN_HZ
+    from accelcal_ros.sensor.datasheet import OUTPUT_DATA_RATES_HZ
+
+    addresses = _Accepted(lambda v: v in VALID_ADDRESSES, *(hex(a) for a in VALID_ADDRESSES))
+    speeds = _Accepted(lambda v: v == 0.0 or v >= BUS_MIN_HZ, '0 (auto)',
+                       f'{BUS_MIN_HZ:g} Hz or more')
+    return OUTPUT_DATA_RATES_HZ, addresses, speeds
+
+
 def register(subparsers: Any, study_subparsers: Any) -> None:
     """Add the ``record`` subcommand."""
+    rates, addresses, _ = _bus_choices()
     parser = subparsers.add_parser(
         'record', help='record raw accelerometer samples to CSV (sim, I2C or SPI)',
         description=__doc__.strip().splitlines()[0])
@@ -28,11 +62,13 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     parser.add_argument('--duration', type=float_in(0.0, 86400.0, low_open=True), default=30.0,
                         help='seconds (default 30)')
     parser.add_argument('--rate', type=float_in(0.0, 3200.0, low_open=True), default=100.0,
-                        help='output data rate, Hz (ADXL345: up to 3200)')
+                        choices=rates, metavar='HZ',
+                        help='output data rate, Hz: an ADXL345 rate (6.25, 12.5, ... 3200: '
+                             'doubling from 6.25; every backend, the simulations too)')
     parser.add_argument('--range-g', type=int, default=16, choices=(2, 4, 8, 16))
-    parser.add_argument('--bus', type=nonnegative_int, default=1, help='I2C bus number')
-    parser.add_argument('--address', type=int_in(0, 0x7F), default=0x53,
-                        help='I2C address (0x53 or 0x1D)')
+    parser.add_argument('--bus', type=int_in(0, 255), default=1, help='I2C bus number')
+    parser.add_argument('--address', type=int_in(0, 0x7F), default=0x53, choices=addresses,
+                        metavar='ADDR', help='I2C address (0x53 or 0x1D)')
     parser.add_argument('--poses-deg', type=angle_deg(360.0), nargs='*', default=[],
                         help='sim: roll pitch pairs in degrees (default: 24 built-in)')
     parser.add_argument('--dwell', type=float_in(0.0, 3600.0, low_open=True), default=3.0,
@@ -51,9 +87,9 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                     'axis within Table 15 x Table 14 for the supply voltage); exit status 1 '
                     'when an axis fails. Sim: the register-level simulation (--sim-bus).')
     selftest.add_argument('--backend', choices=('sim', 'i2c', 'spi'), default='sim')
-    selftest.add_argument('--bus', type=nonnegative_int, default=1, help='I2C bus number')
-    selftest.add_argument('--address', type=int_in(0, 0x7F), default=0x53,
-                          help='I2C address (0x53 or 0x1D)')
+    selftest.add_argument('--bus', type=int_in(0, 255), default=1, help='I2C bus number')
+    selftest.add_argument('--address', type=int_in(0, 0x7F), default=0x53, choices=addresses,
+                          metavar='ADDR', help='I2C address (0x53 or 0x1D)')
     _add_bus_arguments(selftest, sim_bus_default='spi')
     selftest.add_argument('--supply-voltage', type=float_in(2.0, 3.6), default=3.3,
                           help='ADXL345 supply voltage VS, V (scales the limits; default 3.3)')
@@ -68,10 +104,12 @@ def _add_bus_arguments(parser, sim_bus_default='none'):
                         help='sim: none (sample level, simulated time) or the register-level '
                              'ADXL345 on i2c or spi, in real time with bus time charged')
     parser.add_argument('--bus-speed', type=float_in(0.0, 5e6), default=0.0,
-                        help="bus clock, Hz (0: Linux's, else 100 kHz I2C / 5 MHz SPI)")
-    parser.add_argument('--spi-bus', type=nonnegative_int, default=0,
+                        choices=_bus_choices()[2], metavar='HZ',
+                        help="bus clock, Hz: 0 (Linux's, else 100 kHz I2C / 5 MHz SPI) or "
+                             '10000 to 5000000')
+    parser.add_argument('--spi-bus', type=int_in(0, 255), default=0,
                         help='SPI bus B of /dev/spidevB.C')
-    parser.add_argument('--spi-device', type=nonnegative_int, default=0,
+    parser.add_argument('--spi-device', type=int_in(0, 255), default=0,
                         help='SPI chip select C of /dev/spidevB.C')
 
 
@@ -115,9 +153,6 @@ def _record(args):
     from accelcal_ros.driver.sim_sensor import poses_from_flat_list, SimulatedAdxl345
     import numpy as np
 
-    if args.duration <= 0:
-        from accelcal_ros.errors import InputError
-        raise InputError('--duration must be positive')
     start_s = _check_outputs(args)
     if args.backend == 'sim' and args.sim_bus == 'none':  # simulated time: no need to wait
         sensor = SimulatedAdxl345(rate_hz=args.rate, range_g=args.range_g,
@@ -144,7 +179,11 @@ def _record(args):
             stamps.append(batch.stamps)
             chunks.append(batch.samples_g)
         t = np.concatenate(stamps)
-        t = t - t[0] if t.size else t
+        if not t.size:
+            from accelcal_ros.errors import DeviceError
+            raise DeviceError(f'no sample arrived in {args.duration:g} s at {args.rate:g} Hz; '
+                              'nothing written (record longer)')
+        t = t - t[0]
         samples = np.concatenate(chunks)
         stats = source.stats
         if stats.io_errors or stats.fifo_overruns:
@@ -172,16 +211,29 @@ def _add_bag_arguments(parser):
 
 
 def _check_outputs(args):
-    """Exactly one of -o/--bag; returns the wall-clock start (s) used for bag stamps."""
+    """
+    Check the outputs and the length before recording; return the wall-clock start (s).
+
+    Exactly one of -o/--bag; ``--duration`` x ``--rate`` gives at least
+    :data:`MIN_RECORD_SAMPLES` samples; a bag's ``--frame-id`` is a valid tf2 frame id
+    (:func:`accelcal_ros.frame_tree.check_frame_id`, as the nodes check theirs).
+    """
     import time
 
     from accelcal_ros.errors import InputError
 
     if bool(args.output) == bool(args.bag):
         raise InputError('record needs one output: -o FILE.csv or --bag DIR')
+    if int(round(args.duration * args.rate)) < MIN_RECORD_SAMPLES:
+        raise InputError(f'--duration {args.duration:g} s at --rate {args.rate:g} Hz gives no '
+                         f'sample (needs at least {MIN_RECORD_SAMPLES / args.rate:g} s at this '
+                         'rate)')
     if args.bag:
         import os
 
+        from accelcal_ros.frame_tree import check_frame_id
+
+        check_frame_id(args.frame_id, '--frame-id')
         if os.path.exists(args.bag):
             raise InputError(f'{args.bag} exists; remove it or choose another --bag')
     return time.time()

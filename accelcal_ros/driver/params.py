@@ -28,6 +28,15 @@ def _non_empty(value):
     return None if value.strip() else 'must not be empty'
 
 
+def _frame_id_reason(value):
+    """Why ``value`` is no tf2 frame id, or None (frame_tree loads scipy: on use)."""
+    if not value.strip():
+        return 'must not be empty'
+    from accelcal_ros.frame_tree import frame_id_reason
+
+    return frame_id_reason(value)
+
+
 def _speed_reason(value):
     if value != 0.0 and value < bus_timing.BUS_MIN_HZ:
         return f'0 (auto) or at least {bus_timing.BUS_MIN_HZ:g} Hz'
@@ -81,7 +90,7 @@ DRIVER_PARAMS = (
               'cannot keep up), always, never. (Not on/off: YAML reads those as booleans.)',
               choices=('auto', 'always', 'never'), read_only=True),
     ParamSpec('frame_id', 'imu_link', 'frame_id of published messages (REP-103 body frame of '
-              'the sensor).', validator=_non_empty),
+              'the sensor).', validator=_frame_id_reason),
     ParamSpec('seed', 0, 'Random seed of the simulated sensor (deterministic samples).',
               minimum=0, maximum=2**31 - 1, read_only=True),
     ParamSpec('sim.poses_deg', [], 'Simulated static orientations: flat list of roll, pitch '

@@ -64,3 +64,19 @@ def test_record_refuses_a_rate_the_i2c_bus_cannot_sustain(tmp_path, capsys):
     err = capsys.readouterr().err
     assert 'only at >= 400 kHz' in err and 'fastest rate that works here is 200 Hz' in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize('argv, option', [
+    (['record', '--sim-bus', 'i2c', '--bus-speed', '1'], '--bus-speed'),
+    (['selftest', '--address', '0x54'], '--address'),
+    (['selftest', '--spi-device', '99999999999'], '--spi-device'),
+    (['selftest', '--spi-bus', '256'], '--spi-bus'),
+    (['record', '--bus', '256'], '--bus'),
+])
+def test_bus_option_values_the_driver_refuses_are_usage_errors(argv, option, capsys, tmp_path):
+    """Out of the driver parameter's range: status 2 at parse time (was 1 after parsing)."""
+    out = tmp_path / 'rec.csv'
+    assert main(argv + (['-o', str(out)] if argv[0] == 'record' else [])) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and option in err and 'Traceback' not in err
+    assert not out.exists()
