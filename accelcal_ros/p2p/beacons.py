@@ -233,10 +233,18 @@ def undistort_pixels(uv: np.ndarray, camera: CameraModel) -> Tuple[np.ndarray, n
 
     ``rays`` ``(N, 3)`` are normalised ``[x, y, 1]`` (optical frame);
     ``uv_undistorted`` ``(N, 2)`` the same points re-projected with ``K`` alone (ideal
-    pinhole pixels).
+    pinhole pixels). Raises :class:`InputError` for a pixel the lens model has no ray
+    for (past the radius where the distortion folds back, or where its inverse does not
+    converge: NaN from :mod:`accelcal_ros.camera.distortion`).
     """
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     x, y = camera.normalized_from_pixels(uv[:, 0], uv[:, 1], iterations=20)
+    lost = ~(np.isfinite(x) & np.isfinite(y)) & np.isfinite(uv).all(axis=1)
+    if lost.any():
+        u, v = uv[np.argmax(lost)]
+        raise InputError(f"pixel ({u:g}, {v:g}) is outside the lens model's valid range "
+                         f'(distortion D={camera.D.tolist()} has no ray there: it folds '
+                         'back or does not invert); check D, or the detection')
     rays = np.stack([x, y, np.ones_like(x)], axis=1)
     return rays, (rays @ camera.K.T)[:, :2]
 
@@ -285,6 +293,10 @@ def detect_beacons(image: np.ndarray, settings: Optional[DetectorSettings] = Non
     detection.blobs = ordered
     detection.uv = np.array([[b.u, b.v] for b in ordered])
     if camera is not None:
-        detection.rays, detection.uv_undistorted = undistort_pixels(detection.uv, camera)
+        try:
+            detection.rays, detection.uv_undistorted = undistort_pixels(detection.uv, camera)
+        except InputError as exc:  # an emitter where the lens model has no ray: no pose
+            detection.reason = f'emitter {exc}'
+            return detection
     detection.ok = True
     return detection

@@ -12,7 +12,8 @@ order; then ``uv`` are raw pixels) and ``"id"`` (echoed). It writes one JSON lin
 problem: ``{"solutions": [{"R": [9 row-major], "t": [3], "yaw": rad}, ...]}``, or
 ``{"solutions": [], "error": "..."}``. Blank lines are skipped; a malformed line (bad
 JSON, a missing key, a wrong size, NaN, ``K`` without positive focal lengths, a
-non-rotation ``imu_to_camera``...) gets its one-line error and the following lines go
+non-rotation ``imu_to_camera``, emitter coordinates beyond +-1e6 m, a pixel outside the
+lens model's valid range...) gets its one-line error and the following lines go
 on. ``--imu-to-camera`` (or the ``imu_to_camera`` of ``--rig``'s file) is the mounting
 of lines without their own; a bad option or rig file is refused before any line is
 read. Exit status 0, or 1 when any line was malformed (not merely without a solution).
@@ -123,10 +124,12 @@ def parse_problem(line: str, imu_to_camera: Optional['np.ndarray'] = None
     Return ``(uv, camera, points, down)`` of one JSON line; InputError if malformed.
 
     ``camera`` is the :class:`~accelcal_ros.camera.CameraModel` of ``"K"`` (validated:
-    focal lengths > 0) and ``"D"`` (0, 4, 5 or 8 values). ``down`` comes from
-    ``"down"`` or from ``"roll"``/``"pitch"`` (rad, |roll| <= pi, |pitch| <= pi/2) with
-    the line's ``"imu_to_camera"``, else ``imu_to_camera`` (the command's), else the
-    default mounting.
+    focal lengths > 0) and ``"D"`` (0, 4, 5 or 8 values); ``points`` are within
+    +-``MAX_COORDINATE_M`` (m). ``down`` comes from ``"down"`` (any finite nonzero
+    length, returned divided by its largest absolute component) or from
+    ``"roll"``/``"pitch"`` (rad, |roll| <= pi, |pitch| <= pi/2) with the line's
+    ``"imu_to_camera"``, else ``imu_to_camera`` (the command's), else the default
+    mounting.
     """
     import json
     import math
@@ -134,7 +137,7 @@ def parse_problem(line: str, imu_to_camera: Optional['np.ndarray'] = None
     from accelcal_ros.camera import CameraModel
     from accelcal_ros.errors import InputError
     from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA
-    from accelcal_ros.p2p.solver import down_from_roll_pitch
+    from accelcal_ros.p2p.solver import down_from_roll_pitch, MAX_COORDINATE_M
     from accelcal_ros.camera.rig import resolve_imu_to_camera
     import numpy as np
 
@@ -159,12 +162,17 @@ def parse_problem(line: str, imu_to_camera: Optional['np.ndarray'] = None
                               if isinstance(problem['D'], list) else (5,))
     camera = CameraModel(0, 0, k, dist)
     points = _problem_array(problem, 'points', (2, 3))
+    if np.abs(points).max() > MAX_COORDINATE_M:
+        raise InputError(f'"points": coordinates must be within +-{MAX_COORDINATE_M:,.0f} m '
+                         '(emitters in metres in a local object frame)')
     if 'down' in problem:
         if 'roll' in problem or 'pitch' in problem:
             raise InputError('give either "down" or "roll" and "pitch", not both')
         down = _problem_array(problem, 'down', (3,))
-        if not np.linalg.norm(down) > 0:
+        largest = np.abs(down).max()
+        if not largest > 0:
             raise InputError('"down" has zero length')
+        down = down / largest  # any finite nonzero length: no overflow or underflow
     elif 'roll' in problem and 'pitch' in problem:
         roll = float(_problem_array(problem, 'roll', ()))
         pitch = float(_problem_array(problem, 'pitch', ()))

@@ -4,15 +4,25 @@ from typing import Optional, Sequence
 from accelcal_ros.errors import InputError
 from accelcal_ros.frames import DEFAULT_IMU_TO_CAMERA, rotation_matrix_from_list
 from accelcal_ros.p2p.beacons import ORDERS
+from accelcal_ros.p2p.solver import MAX_COORDINATE_M
 from accelcal_ros.paramspec import ParamSpec
 import numpy as np
 
 
 def emitters_reason(values: Sequence[float]) -> Optional[str]:
-    """Return why 6 emitter coordinates are unusable, or None (distinct, not vertical)."""
+    """
+    Return why 6 emitter coordinates are unusable, or None.
+
+    Usable: finite, within +-``MAX_COORDINATE_M`` (m), distinct, not on one vertical line.
+    """
     if len(values) != 6:
         return f'expected 6 values (M1 x y z, M2 x y z in m), got {len(values)}'
     m = np.asarray(values, dtype=float).reshape(2, 3)
+    if not np.all(np.isfinite(m)):
+        return 'coordinates must be finite numbers (m)'
+    if np.abs(m).max() > MAX_COORDINATE_M:
+        return (f'coordinates must be within +-{MAX_COORDINATE_M:,.0f} m (emitters in metres '
+                'in a local object frame)')
     delta = m[0] - m[1]
     baseline = float(np.linalg.norm(delta))
     if baseline == 0.0:
@@ -33,8 +43,8 @@ def rotation_reason(values: Sequence[float]) -> Optional[str]:
 
 P2P_PARAMS = (
     ParamSpec('emitters', [0.0, 0.0, 0.0, 1.0, 0.0, 0.0], 'Object coordinates of emitters M1 '
-              'and M2: x1, y1, z1, x2, y2, z2 (object frame, z up, m). Not on one vertical '
-              'line; M1 is the emitter `order` picks first.', lengths=(6,),
+              'and M2: x1, y1, z1, x2, y2, z2 (object frame, z up, m; each within +-1e6). Not on '
+              'one vertical line; M1 is the emitter `order` picks first.', lengths=(6,),
               validator=emitters_reason, unit='m'),
     ParamSpec('imu_to_camera', [float(v) for v in DEFAULT_IMU_TO_CAMERA.reshape(-1)],
               'Rotation from the IMU body frame (REP-103, x fwd, y left, z up) to the camera '

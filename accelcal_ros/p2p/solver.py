@@ -9,9 +9,12 @@ about the vertical and the translation (4 degrees of freedom, 4 equations).
 Frames (the contract)
 ---------------------
 - Camera optical frame: x right, y down, z forward (REP-103 ``_optical``).
-- Object frame: z up (gravity along -z), metres.
-- Vertical input ``down``: the unit gravity direction in the camera frame (any positive
-  length is accepted and normalised); from IMU roll/pitch use
+- Object frame: z up (gravity along -z), metres; emitter coordinates within
+  +-:data:`MAX_COORDINATE_M`.
+- Vertical input ``down``: the unit gravity direction in the camera frame (any finite
+  nonzero length is accepted: divided by its largest absolute component, then
+  normalised, so 1e-200 or 1e200 neither underflow nor overflow; rays alike); from IMU
+  roll/pitch use
   :func:`down_from_roll_pitch` (:func:`accelcal_ros.frames.down_in_camera`).
 - Output: ``X_cam = R X_obj + t`` (object to camera; ``t`` is the object origin in the
   camera frame, ``-R^T t`` the camera centre in the object frame), and the yaw of
@@ -79,6 +82,7 @@ class SolveStatus(IntEnum):
     BEHIND_CAMERA = 8
     BAD_DOWN = 9
     RAY_BACKWARD = 10
+    OUT_OF_RANGE = 11
 
 
 OK = SolveStatus.OK
@@ -92,6 +96,11 @@ NO_REAL_SOLUTION = SolveStatus.NO_REAL_SOLUTION
 BEHIND_CAMERA = SolveStatus.BEHIND_CAMERA
 BAD_DOWN = SolveStatus.BAD_DOWN
 RAY_BACKWARD = SolveStatus.RAY_BACKWARD
+OUT_OF_RANGE = SolveStatus.OUT_OF_RANGE
+
+MAX_COORDINATE_M = 1e6
+"""Largest absolute emitter coordinate (object frame, m) the solver takes: beyond it the
+squared baselines and ranges lose the precision (or overflow) the geometry tests need."""
 
 REASONS: Dict[SolveStatus, str] = {
     OK: 'ok',
@@ -111,6 +120,8 @@ REASONS: Dict[SolveStatus, str] = {
     BEHIND_CAMERA: 'no solution with both emitters in front of the camera',
     BAD_DOWN: 'the vertical ("down") vector has zero length',
     RAY_BACKWARD: 'an image ray points backwards (z <= 0 in the camera frame)',
+    OUT_OF_RANGE: f'an emitter coordinate is beyond +-{MAX_COORDINATE_M:,.0f} m: give the '
+                  'emitters in metres in a local object frame',
 }
 """Human-readable reason of each :class:`SolveStatus`."""
 
@@ -272,15 +283,28 @@ def _quadratic_roots(a, b, c):
     return first, second, real, double
 
 
+def _scaled_norm(vectors: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return ``(norm, scaled)`` of vectors along the last axis, free of overflow/underflow.
+
+    ``scaled`` is ``vectors`` divided by their largest absolute component (zero vectors
+    kept), ``norm`` the length of each scaled vector (0, or 1 to sqrt 3).
+    """
+    largest = np.abs(vectors).max(axis=-1)
+    scaled = vectors / np.where(largest == 0.0, 1.0, largest)[..., None]
+    return np.where(largest == 0.0, 0.0, np.linalg.norm(scaled, axis=-1)), scaled
+
+
 def solve_batch(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> 'BatchResult':
     """
     Solve ``N`` P2P problems at once (vectorised numpy; see the module text for the method).
 
     ``rays`` ``(N, 2, 3)``: the emitters' rays in the camera frame (any positive length,
     z > 0; e.g. :func:`rays_from_pixels`); ``points`` ``(2, 3)`` or ``(N, 2, 3)``: M1, M2
-    in the object frame (m); ``down`` ``(N, 3)`` or ``(3,)``: gravity direction in the
-    camera frame. Returns a :class:`BatchResult`; never raises for degenerate problems
-    (their ``status`` says why), :class:`InputError` only for wrong shapes.
+    in the object frame (m, within +-:data:`MAX_COORDINATE_M`); ``down`` ``(N, 3)`` or
+    ``(3,)``: gravity direction in the camera frame (any finite nonzero length). Returns a
+    :class:`BatchResult`; never raises for degenerate problems (their ``status`` says
+    why), :class:`InputError` only for wrong shapes.
     """
     rays = np.asarray(rays, dtype=float)
     if rays.ndim != 3 or rays.shape[1:] != (2, 3):
@@ -309,13 +333,15 @@ def solve_batch(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> 'BatchRe
         rays = np.where(finite[:, None, None], rays, 1.0)
         points = np.where(finite[:, None, None], points, 0.0)
         down = np.where(finite[:, None], down, 1.0)
+        flag(np.abs(points).max(axis=(1, 2)) > MAX_COORDINATE_M, OUT_OF_RANGE)
+        points = np.where((status == OK)[:, None, None], points, 0.0)
 
-        down_norm = np.linalg.norm(down, axis=1)
+        down_norm, down = _scaled_norm(down)
         flag(down_norm == 0.0, BAD_DOWN)
-        up = -down / np.where(down_norm == 0.0, 1.0, down_norm)[:, None]
+        up = -down / np.where(down_norm == 0.0, 1.0, down_norm)[..., None]
         basis = level_basis(up)                                  # A: level -> camera
 
-        ray_norm = np.linalg.norm(rays, axis=2)
+        ray_norm, rays = _scaled_norm(rays)
         flag((rays[:, :, 2] <= 0.0).any(axis=1) | (ray_norm == 0.0).any(axis=1), RAY_BACKWARD)
         unit = rays / np.where(ray_norm == 0.0, 1.0, ray_norm)[:, :, None]
         level = np.einsum('nij,njk->nik', unit, basis)           # r_i = A^T b_i
@@ -395,9 +421,10 @@ def solve(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> List['P2PSolut
     Solve one P2P problem; return every valid :class:`P2PSolution` (one or two).
 
     ``rays`` ``(2, 3)`` (camera frame, z > 0), ``points`` ``(2, 3)`` (object frame, m),
-    ``down`` ``(3,)`` (camera frame). Raises :class:`InputError` for wrong shapes or
-    NaN and :class:`GeometryError` (with the reason) for degenerate geometry or when no
-    real solution has both emitters in front of the camera.
+    ``down`` ``(3,)`` (camera frame). Raises :class:`InputError` for wrong shapes, NaN or
+    points beyond +-:data:`MAX_COORDINATE_M` and :class:`GeometryError` (with the reason)
+    for degenerate geometry or when no real solution has both emitters in front of the
+    camera.
     """
     rays = np.asarray(rays, dtype=float)
     points = np.asarray(points, dtype=float)
@@ -409,6 +436,8 @@ def solve(rays: ArrayLike, points: ArrayLike, down: ArrayLike) -> List['P2PSolut
         if not np.all(np.isfinite(value)):
             raise InputError(f'{name} contains NaN or infinity')
     status, solutions = _solve_one(rays.tolist(), points.tolist(), down.tolist())
+    if status == OUT_OF_RANGE:
+        raise InputError(REASONS[status])
     if status != OK:
         raise GeometryError(REASONS[status])
     return solutions
@@ -427,10 +456,13 @@ def _solve_one(rays: List[List[float]], points: List[List[float]], down: List[fl
     thresholds and status order as the batch form (tests hold them equal).
     Returns ``(status, [P2PSolution, ...])``.
     """
-    gx, gy, gz = down
-    norm = math.sqrt(gx * gx + gy * gy + gz * gz)
-    if norm == 0.0:
+    if max(abs(c) for point in points for c in point) > MAX_COORDINATE_M:
+        return OUT_OF_RANGE, []
+    largest = max(abs(c) for c in down)
+    if largest == 0.0:
         return BAD_DOWN, []
+    gx, gy, gz = (c / largest for c in down)
+    norm = math.sqrt(gx * gx + gy * gy + gz * gz)
     x, y, z = -gx / norm, -gy / norm, -gz / norm
     sign = 1.0 if z >= 0.0 else -1.0
     a = -1.0 / (sign + z)
@@ -440,9 +472,11 @@ def _solve_one(rays: List[List[float]], points: List[List[float]], down: List[fl
     col3 = (x, y, z)
     units, level = [], []
     for ray in rays:
-        length = math.sqrt(ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2])
-        if ray[2] <= 0.0 or length == 0.0:
+        largest = max(abs(c) for c in ray)
+        if ray[2] <= 0.0 or largest == 0.0:
             return RAY_BACKWARD, []
+        ray = [c / largest for c in ray]
+        length = math.sqrt(ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2])
         u = (ray[0] / length, ray[1] / length, ray[2] / length)
         units.append(u)
         level.append(tuple(c[0] * u[0] + c[1] * u[1] + c[2] * u[2]

@@ -137,7 +137,8 @@ def frame_radius_and_limit2(camera: Any) -> Tuple[float, float]:
     xn, yn = normalized_from_pixels(camera, *frame_border_pixels(camera))
     radius = float(np.sqrt(xn * xn + yn * yn).max())
     limit = radius * DISTORTION_RADIUS_MARGIN
-    if camera.has_distortion():
+    folds = not math.isfinite(radius)  # a border pixel without a ray: NaN (camera.distortion)
+    if camera.has_distortion() and not folds:
         r = np.linspace(0.0, limit, 2001)[1:]
         k1, k2, _, _, k3 = camera.D
         r2 = r * r
@@ -145,10 +146,11 @@ def frame_radius_and_limit2(camera: Any) -> Tuple[float, float]:
         bad = np.nonzero(np.diff(mapped) <= 0.0)[0]
         if bad.size:
             limit = min(limit, float(r[bad[0]]))
-            if limit <= radius:
-                raise InputError(f'camera {camera.name!r}: distortion D={camera.D.tolist()} '
-                                 'is not invertible over the frame (radial mapping folds '
-                                 'back); check the calibration')
+            folds = limit <= radius
+    if folds:
+        raise InputError(f'camera {camera.name!r}: distortion D={camera.D.tolist()} '
+                         'is not invertible over the frame (radial mapping folds '
+                         'back); check the calibration')
     return radius, limit * limit
 
 

@@ -1,6 +1,9 @@
 """The one camera model against OpenCV, on random ground truth (every lens model)."""
+import warnings
+
 from accelcal_ros.camera import (camera_model_from_mapping, CameraModel, distort_normalized,
                                  undistort_normalized)
+from accelcal_ros.camera import distortion
 from accelcal_ros.errors import InputError
 import cv2
 import numpy as np
@@ -167,3 +170,86 @@ def test_camera_info_fields():
     assert not CameraModel.from_camera_info(K.reshape(-1), [0.0] * 5, 'x', 0, 0).has_distortion()
     with pytest.raises(InputError, match='camera_info K'):
         CameraModel.from_camera_info([0.0] * 9, [], 'plumb_bob', 640, 480)
+
+
+STRONG_LENSES = dict(LENSES, barrel=('plumb_bob', [-0.6, 0.0, 0.0, 0.0, 0.0]),
+                     wavy=('plumb_bob', [-0.3, 0.1, 0.001, 0.002, -0.02]),
+                     rational_fold=('rational_polynomial',
+                                    [-0.3, 0.1, 0.001, 0.002, -0.02, 0.01, 0.0, 0.0]),
+                     fisheye_fold=('equidistant', [-0.2, 0.0, 0.0, 0.0]))
+
+
+def _sampled_fold(d, model):
+    """Ground truth of monotonic_limit2: the first radius where the radial map decreases."""
+    r = np.linspace(0.0, 20.0, 2000001)
+    if model == 'equidistant':
+        mapped = distortion.distort_equidistant_angle(r, d)
+    else:  # along +x, tangential terms left out: r s(r^2)
+        mapped = distort_normalized(r, 0.0 * r, np.r_[d[:2], 0.0, 0.0, d[4:]], model)[0]
+    falls = np.nonzero(np.diff(mapped) <= 0.0)[0]
+    return r[falls[0]] if falls.size else np.inf
+
+
+@pytest.mark.parametrize('lens', sorted(STRONG_LENSES))
+def test_undistortion_round_trips_valid_points_on_both_paths(lens):
+    """Distort random points within the monotonic range, undistort: back within 1e-10."""
+    model, d = STRONG_LENSES[lens]
+    d = CameraModel(640, 480, K, d, model).D
+    limit = np.sqrt(distortion.monotonic_limit2(tuple(d), model))
+    assert limit == pytest.approx(_sampled_fold(d, model), abs=2e-5, rel=1e-6)
+    rng = np.random.default_rng(sum(map(ord, lens)))
+    radius = min(limit, 1.4) * 0.98 * np.sqrt(rng.uniform(0.0, 1.0, 400))
+    if model == 'equidistant':
+        radius = np.tan(radius)  # limit is an angle (rad)
+    azimuth = rng.uniform(-np.pi, np.pi, 400)
+    x, y = radius * np.cos(azimuth), radius * np.sin(azimuth)
+    xd, yd = distort_normalized(x, y, d, model)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        bx, by = undistort_normalized(xd, yd, d, model)                  # array path
+        pairs = [undistort_normalized(xd[k:k + 2], yd[k:k + 2], d, model)  # float path
+                 for k in range(0, 400, 2)]
+    scale = np.maximum(1.0, radius)
+    assert np.abs((bx - x) / scale).max() < 1e-10 and np.abs((by - y) / scale).max() < 1e-10
+    assert np.abs(np.concatenate([p[0] for p in pairs]) - bx).max() < 1e-12
+
+
+def test_pixels_without_a_real_ray_are_nan_not_a_wrong_answer():
+    """
+    Past the fold (no ray, or only a ray on the folded branch), undistortion gives NaN.
+
+    k1 = -0.6: r (1 - 0.6 r^2) peaks at r = 0.745 (distorted radius 0.497). (0.8, 0.6)
+    has no preimage (Newton never converges); (1.2, 0.9) has one only on the folded
+    branch (r = 1.78, where the radial factor is negative): the old code returned both.
+    """
+    d = [-0.6, 0.0, 0.0, 0.0, 0.0]
+    xd, yd = np.array([0.8, 1.2, 0.2]), np.array([0.6, 0.9, 0.1])
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        for n in (1, 3):                                        # float and array paths
+            x, y = undistort_normalized(np.tile(xd, n * 3), np.tile(yd, n * 3), d)
+            assert np.isnan(x[:2]).all() and np.isnan(y[:2]).all(), x
+            assert np.isfinite(x[2::3]).all()
+            assert np.isnan(x[0::3]).all() and np.isnan(x[1::3]).all()
+        camera = CameraModel(0, 0, np.array([[800.0, 0, 640], [0, 800.0, 480], [0, 0, 1]]), d)
+        rays = camera.unproject([[1280.0, 960.0], [1600.0, 1200.0], [700.0, 500.0]])
+        assert np.isnan(rays[:2]).all() and np.isfinite(rays[2]).all()
+        back = camera.project(rays[2:] * 3.0)
+        assert np.abs(back - [[700.0, 500.0]]).max() < 1e-9
+        # a fisheye past its theta_d maximum (k1 = -0.3: 0.703 at 1.054 rad)
+        theta, _, _ = distortion.undistort_equidistant_angle(np.array([0.9, 0.5]),
+                                                             np.zeros(2), [-0.3, 0, 0, 0])
+        assert np.isnan(theta[0]) and abs(distortion.distort_equidistant_angle(
+            theta[1], [-0.3, 0, 0, 0]) - 0.5) < 1e-12
+        # too few iterations to converge is not a valid answer either
+        x, _ = undistort_normalized(np.array([0.49] * 10), np.zeros(10), d, iterations=2)
+        assert np.isnan(x).all()
+        assert np.isnan(undistort_normalized(np.nan, 0.0, d)[0])
+
+
+def test_monotonic_limit_of_rational_and_undistorted_models():
+    """No radial terms: no limit; a vanishing rational denominator ends the range."""
+    assert distortion.monotonic_limit2((0.0, 0.0, 0.001, 0.002, 0.0)) == np.inf
+    assert distortion.monotonic_limit2((0.1, 0.01, 0, 0, 0.001)) == np.inf
+    # 1 - u = 0 at u = 1 with a numerator that keeps rising: the pole is the end
+    assert distortion.monotonic_limit2((0.0, 0, 0, 0, 0, -1.0, 0, 0)) == pytest.approx(1.0)

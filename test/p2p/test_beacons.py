@@ -156,6 +156,12 @@ def test_undistortion_models():
     assert np.abs(got - rays).max() < 1e-9
     got, _ = beacons.undistort_pixels((rays @ k.T)[:, :2], CameraModel(0, 0, k, np.zeros(5)))
     assert np.abs(got - rays).max() < 1e-12
+    # past the radius where the distortion folds back there is no ray: refused, not solved
+    barrel = CameraModel(0, 0, k, np.array([-0.6, 0.0, 0.0, 0.0, 0.0]))
+    with pytest.raises(InputError, match=r"pixel \(1280, 960\) is outside the lens model's"):
+        beacons.undistort_pixels(np.array([[700.0, 500.0], [1280.0, 960.0]]), barrel)
+    with pytest.raises(InputError, match='valid range'):
+        beacons.undistort_pixels(np.array([[1600.0, 1200.0]]), barrel)
     with pytest.raises(InputError, match='not supported'):
         CameraModel(0, 0, k, fisheye, 'weird')
     with pytest.raises(InputError, match='coefficients'):

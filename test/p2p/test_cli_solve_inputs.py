@@ -1,6 +1,7 @@
 """``accelcal p2p-solve`` on hostile input: one error per bad line, bad options refused."""
 import io
 import json
+import warnings
 
 from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
@@ -53,6 +54,12 @@ def _closest(record, translation):
     ({'D': [0.1, 0.2, 0.3]}, '4, 5 or 8'),
     ({'pitch': 1e308}, 'within'),
     ({'roll': True}, 'JSON numbers'),
+    ({'uv': [[1280, 960], [1200, 960]], 'K': [800, 0, 640, 0, 800, 480, 0, 0, 1],
+      'D': [-0.6, 0, 0, 0, 0]}, "pixel (1280, 960) is outside the lens model's valid range"),
+    ({'uv': [[700, 500], [1600, 1200]], 'K': [800, 0, 640, 0, 800, 480, 0, 0, 1],
+      'D': [-0.6, 0, 0, 0, 0]}, "pixel (1600, 1200) is outside the lens model's valid range"),
+    ({'points': [[0, 0, 0], [0, 1e300, 0]]}, 'within +-1,000,000 m'),
+    ({'points': [[0, 0, 0], [1e6 + 1, 0.5, 0]]}, 'within +-1,000,000 m'),
 ])
 def test_a_bad_line_gets_one_error_and_the_stream_goes_on(monkeypatch, capsys, change,
                                                           words):
@@ -112,3 +119,44 @@ def test_a_bad_mounting_is_refused_up_front(monkeypatch, capsys, tmp_path, rig_t
     status, out, err = _run(monkeypatch, capsys, [json.dumps(line)], *args)
     assert status != 0 and out == []
     assert words in err and 'Traceback' not in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_pixel_past_the_lens_fold_is_its_own_error_not_a_pose(monkeypatch, capsys):
+    """
+    The line of the bug report: one error for it, exit 1, no pose.
+
+    The old code answered with a pose whose projection through K and D put the emitters
+    at (459.6, 344.7) and (908.1, 709.8), not at the input pixels.
+    """
+    line = ('{"uv": [[1280, 960], [1200, 960]], "K": [800,0,640, 0,800,480, 0,0,1], '
+            '"points": [[0,0,0], [0,0.5,0]], "down": [0,1,0], "D": [-0.6,0,0,0,0]}')
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        status, out, err = _run(monkeypatch, capsys, [line])
+    assert status == 1 and err == '' and len(out) == 1 and out[0]['solutions'] == []
+    assert out[0]['error'].startswith(
+        "pixel (1280, 960) is outside the lens model's valid range")
+
+
+@pytest.mark.parametrize('scale', [1e200, 1e-200, 1e-300, 3.0, 1e300])
+def test_a_scaled_down_vector_gives_the_unit_vector_solution(monkeypatch, capsys, scale):
+    """A "down" of any finite nonzero length is one direction: same poses, no warnings."""
+    line = {'uv': [[700, 500], [500, 520]], 'K': K, 'points': [[0, 0, 0], [1, 0, 0]],
+            'down': [0, 0.8, 0.6]}
+    scaled = dict(line, down=[0, 0.8 * scale, 0.6 * scale])
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        status, out, err = _run(monkeypatch, capsys, [json.dumps(line), json.dumps(scaled)])
+    assert status == 0 and err == '' and 'error' not in out[1], out[1]
+    assert len(out[0]['solutions']) == len(out[1]['solutions']) >= 1
+    for unit, other in zip(out[0]['solutions'], out[1]['solutions']):
+        assert np.allclose(unit['R'], other['R'], atol=1e-12)
+        assert np.allclose(unit['t'], other['t'], atol=1e-12)
+
+
+def test_p2p_over_a_bag_refuses_emitters_beyond_the_stated_range(capsys, tmp_path):
+    """The range, not 'one vertical line', for accelcal p2p --emitters 0 0 0 1e300 0 0."""
+    status = main(['p2p', str(tmp_path / 'none.mcap'), '--emitters', '0', '0', '0', '1e300',
+                   '0', '0', '-o', str(tmp_path / 'poses.csv')])
+    err = capsys.readouterr().err
+    assert status == 1 and 'within +-1,000,000 m' in err and 'vertical' not in err

@@ -153,9 +153,28 @@ def test_parameter_validation():
     assert 'coincide' in emitters_reason([1.0, 2, 3, 1, 2, 3])
     assert 'expected 6' in emitters_reason([1.0, 2, 3])
     assert emitters_reason(EMITTERS) is None
+    assert 'within +-1,000,000 m' in emitters_reason([0, 0, 0, 1e300, 0, 0])
+    assert 'within' in emitters_reason([0, 0, 0, 0, 0, -1.5e6])
     assert 'not a rotation' in rotation_reason([1.0] * 9)
     assert rotation_reason(list(DEFAULT_IMU_TO_CAMERA.reshape(-1))) is None
     _, reasons = check_all(P2P_PARAMS, {'order': 'diagonal', 'threshold': 300})
     assert len(reasons) == 2
     with pytest.raises(InputError, match='area'):
         P2PPipeline(defaults(min_area_px=100, max_area_px=10))
+
+
+def test_an_emitter_past_the_lens_fold_gets_a_reason_not_a_pose():
+    """
+    A blob where the lens model has no ray is refused with the reason: no pose.
+
+    k1 = -0.6 at f = 400 px has no ray past 199 px from the centre (here the corner).
+    """
+    pipe = P2PPipeline(defaults())
+    assert pipe.set_camera_info([400.0, 0, 320, 0, 400.0, 240, 0, 0, 1],
+                                [-0.6, 0.0, 0.0, 0.0, 0.0], 'plumb_bob', 640, 480) is None
+    image = render.draw_spots((480, 640), [[330.0, 250.0], [600.0, 450.0]], 1.5, 240)
+    pipe.add_attitude(5.0, 0.0, 0.0)
+    [result] = pipe.add_image(5.0, 'cam', image.astype(np.uint8))
+    assert result.solution is None and result.candidates == []
+    assert "(600, 450) is outside the lens model's valid range" in result.reason
+    assert result.detection is not None and not result.detection.ok

@@ -1,4 +1,6 @@
 """P2P solver with known vertical: exactness, yaw contract, degenerate input, batch form."""
+import warnings
+
 from accelcal_ros.errors import GeometryError, InputError
 from accelcal_ros.frames import (DEFAULT_IMU_TO_CAMERA, down_in_camera,
                                  rotation_from_rpy_radians, rpy_radians_from_rotation)
@@ -313,3 +315,34 @@ def test_scalar_and_batch_forms_agree_including_degenerate_cases():
             assert np.allclose(a.translation, b.translation, atol=1e-10)
             assert a.yaw == pytest.approx(b.yaw, abs=1e-12)
             assert np.allclose(a.depths, b.depths, rtol=1e-10)
+
+
+@pytest.mark.parametrize('scale', [1e200, 1e-200, 1e-300, 1e300])
+def test_scaled_down_and_rays_give_the_unit_solution_without_warnings(scale):
+    """A direction of any finite nonzero length works (no overflow/underflow) in both forms."""
+    rng = np.random.default_rng(12)
+    rotation, translation, points, rays, down = make_problem(rng)
+    unit = solver.solve(rays, points, down)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        for got in (solver.solve(rays, points, down * scale),
+                    solver.solve(rays * scale, points, down),
+                    solver.solve_batch(rays[None] * scale, points,
+                                       down * scale).solutions(0)):
+            assert len(got) == len(unit)
+            for a, b in zip(unit, got):
+                assert np.allclose(a.rotation, b.rotation, atol=1e-12)
+                assert np.allclose(a.translation, b.translation, atol=1e-9)
+
+
+def test_emitter_coordinates_beyond_the_range_are_refused():
+    """|coordinate| > MAX_COORDINATE_M: InputError (solve) / OUT_OF_RANGE (batch), no warning."""
+    rays = [[-0.1, 0.1, 1.0], [0.1, 0.1, 1.0]]
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        for far in ([[0, 0, 0], [0, 1e300, 0]], [[0, 0, 0], [2e6, 0, 0]]):
+            with pytest.raises(InputError, match='1,000,000 m'):
+                solver.solve(rays, far, [0, 1.0, 0])
+            result = solver.solve_batch(np.array([rays]), far, [0, 1.0, 0])
+            assert result.status[0] == solver.OUT_OF_RANGE and not result.valid.any()
+    assert solver.solve(rays, [[0, 0, 0], [1e6, 0, 0]], [0, 1.0, 0])  # the bound itself
