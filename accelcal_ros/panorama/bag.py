@@ -14,7 +14,7 @@ farther than ``attitude_tolerance_s`` from the series' span is skipped (counted)
 
 Output. ``*.mp4``/``*.avi``/``*.mkv``: one video (OpenCV VideoWriter, written to a
 temporary name and renamed when complete); anything else: a folder of
-``frame_NNNNNN.png``.
+``frame_NNNNNN.png`` (a failed run removes the frames it wrote and the folders it made).
 """
 from dataclasses import dataclass
 import os
@@ -54,6 +54,8 @@ class FrameSink:
         self.codec = VIDEO_SUFFIXES.get(suffix)
         self._writer: Any = None  # cv2.VideoWriter once the first frame gives the size
         self.count = 0
+        self._frames: List[str] = []   # the frame files this run wrote
+        self._made: List[str] = []     # the folders this run made (outermost first)
         if self.codec is None:
             if suffix in IMAGE_SUFFIXES:   # a folder named x.png is not what was asked for
                 raise InputError(f'{self.path}: a recording gives many frames: write a video '
@@ -61,7 +63,12 @@ class FrameSink:
                                  '(a name without an image suffix)')
             if os.path.exists(self.path) and os.listdir(self.path):
                 raise InputError(f'{self.path} exists and is not empty; choose a new folder')
+            missing, folder = [], os.path.abspath(self.path)
+            while not os.path.isdir(folder):   # the folders this run makes, outermost first
+                missing.insert(0, folder)
+                folder = os.path.dirname(folder)
             os.makedirs(self.path, exist_ok=True)
+            self._made = missing
         else:
             parent = os.path.dirname(os.path.abspath(self.path))
             self._tmp = os.path.join(parent, f'.{os.path.basename(self.path)}.partial-'
@@ -77,8 +84,9 @@ class FrameSink:
             ok, data = cv2.imencode('.png', frame)
             if not ok:
                 raise InputError('cannot encode a panorama frame as PNG')
-            write_bytes_atomic(os.path.join(self.path, f'frame_{self.count:06d}.png'),
-                               data.tobytes())
+            name = os.path.join(self.path, f'frame_{self.count:06d}.png')
+            write_bytes_atomic(name, data.tobytes())
+            self._frames.append(name)
         else:
             if frame.ndim == 2:
                 frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
@@ -93,7 +101,26 @@ class FrameSink:
         self.count += 1
 
     def close(self, ok: bool = True) -> None:
-        """Finish the video (renamed into place) or drop it when ``ok`` is False."""
+        """
+        Finish the video (renamed into place) or drop it when ``ok`` is False.
+
+        A folder of frames dropped: the frames this run wrote are removed, then the
+        folders it made if nothing else is in them; nothing else is touched.
+        """
+        if self.codec is None:
+            if not ok:
+                for name in self._frames:
+                    try:
+                        os.remove(name)
+                    except FileNotFoundError:
+                        pass
+                for folder in reversed(self._made):
+                    try:
+                        os.rmdir(folder)
+                    except OSError:   # something else is in it now: it stays
+                        break
+                self._frames, self._made = [], []
+            return
         if self._writer is not None:
             self._writer.release()
             if ok and self.count:

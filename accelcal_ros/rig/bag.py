@@ -105,16 +105,13 @@ def _write_pose(folder: str, names: Sequence[str], candidate: _Candidate,
         write_bytes_atomic(os.path.join(folder, f'{name}.png'), png.tobytes())
 
 
-def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
-                    imu_topic: Optional[str], directory: str, sync_s: float = 0.05,
-                    min_still_s: float = 1.0) -> BagCapture:
+def capture_topics(bag: BagReader, image_topics: Optional[Sequence[str]]
+                   ) -> Tuple[List[str], List[str]]:
     """
-    Write the capture directory of a recording into ``directory`` (see the module docstring).
+    Return the image topics of the capture and their camera names (reads no message).
 
-    ``image_topics`` None: every Image/CompressedImage topic of the bag, in sorted order.
-    Raises InputError when a topic is missing or of the wrong type, the IMU never holds
-    still for ``min_still_s``, no still segment has a complete frame set, or a camera's
-    images change size.
+    ``image_topics`` None: every Image/CompressedImage topic of the bag, in sorted order;
+    InputError when a topic is missing, of the wrong type or named twice.
     """
     if image_topics:
         topics = [bag.select_topic(t, IMAGE_TYPES, f'--images (camera {i})')
@@ -126,7 +123,21 @@ def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
         if not topics:
             raise InputError(f'{bag.path} has no sensor_msgs/Image or CompressedImage topic; '
                              f'it has: {bag.listing()}')
-    names = camera_names(topics)
+    return topics, camera_names(topics)
+
+
+def extract_capture(bag: BagReader, image_topics: Optional[Sequence[str]],
+                    imu_topic: Optional[str], directory: str, sync_s: float = 0.05,
+                    min_still_s: float = 1.0) -> BagCapture:
+    """
+    Write the capture directory of a recording into ``directory`` (see the module docstring).
+
+    ``image_topics`` None: every Image/CompressedImage topic of the bag, in sorted order.
+    Raises InputError when a topic is missing or of the wrong type, the IMU never holds
+    still for ``min_still_s``, no still segment has a complete frame set, or a camera's
+    images change size.
+    """
+    topics, names = capture_topics(bag, image_topics)
     imu = read_imu(bag, imu_topic, '--imu')
     warnings = list(imu.warnings)
     if imu.gyro is None:

@@ -13,7 +13,7 @@ import os
 import time
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from accelcal_ros.errors import InputError
+from accelcal_ros.errors import CalibrationError, InputError
 from accelcal_ros.rig.board import Board
 from accelcal_ros.rig.dataset import (check_size, Dataset, pose_gravity, read_grey,
                                       scan_directory)
@@ -29,6 +29,8 @@ import numpy as np
 MIN_VIEWS_PER_CAMERA = 6
 MIN_SHARED_VIEWS = 3
 MIN_COVERAGE = 0.5
+MIN_GRAVITY_POSES = 2
+"""Poses with both a board view and a still 1 g accelerometer log ``imu_to_camera`` needs."""
 
 
 @dataclass
@@ -161,6 +163,16 @@ def _warnings(result: RigCalibration) -> List[str]:
     return out
 
 
+def _too_few_poses(count: int, dropped_poses: Dict[str, str], shown: int = 1) -> str:
+    """Return the error of too few gravity poses, with why the first dropped ones went."""
+    reasons = '; '.join(f'{pose}: {why}' for pose, why in sorted(dropped_poses.items())[:shown])
+    more = f'; {len(dropped_poses) - shown} more' if len(dropped_poses) > shown else ''
+    dropped = (f' ({len(dropped_poses)} poses dropped: {reasons}{more})'
+               if dropped_poses else '')
+    return (f'imu_to_camera needs at least {MIN_GRAVITY_POSES} poses with both a board view '
+            f'and a still accelerometer reading 1 g, got {count}{dropped}: add poses')
+
+
 def calibrate_directory(directory: str, board: Board, intrinsics_files: Sequence[str] = (),
                         accel_model: Optional[SensorModel] = None,
                         reference: Optional[str] = None,
@@ -186,8 +198,10 @@ def calibrate_directory(directory: str, board: Board, intrinsics_files: Sequence
             dropped_poses[pose] = why
         else:
             gravity[pose] = value
-    mount = fit_imu_to_camera({p: fit.board_poses[p] for p in fit.board_poses if p in gravity},
-                              gravity, estimate_tilt)
+    usable = {p: fit.board_poses[p] for p in fit.board_poses if p in gravity}
+    if len(usable) < MIN_GRAVITY_POSES:
+        raise CalibrationError(_too_few_poses(len(usable), dropped_poses))
+    mount = fit_imu_to_camera(usable, gravity, estimate_tilt)
     coverage = [coverage_fraction([c for (p, j), c in detections.items() if j == i],
                                   dataset.sizes[cam]) for i, cam in enumerate(dataset.cameras)]
     result = RigCalibration(board, dataset.cameras, [dataset.sizes[c] for c in dataset.cameras],

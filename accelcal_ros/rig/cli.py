@@ -1,7 +1,7 @@
 """Command line of rig calibration: ``accelcal rig-calibrate`` and ``accelcal study rig``."""
 import argparse
 import os
-from typing import Optional, TYPE_CHECKING
+from typing import List, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.cli_args import float_in, int_in, nonnegative_int
 
@@ -73,56 +73,137 @@ def _add_bag_arguments(p: argparse.ArgumentParser) -> None:
     add_stamp_argument(p)
 
 
+def _inputs(args: argparse.Namespace) -> List[str]:
+    """Return what the command reads: the capture or bag, the calibration, the intrinsics."""
+    return [p for p in [args.directory, args.calibration, *args.intrinsics] if p]
+
+
+def _sensor_model(args: argparse.Namespace) -> 'Optional[SensorModel]':
+    if not args.calibration:
+        return None
+    from accelcal_ros.sensor.calibration_file import load_sensor_model
+
+    return load_sensor_model(args.calibration)
+
+
 def _calibrate_bag(args: argparse.Namespace, board: 'Board',
-                   model: 'Optional[SensorModel]') -> 'RigCalibration':
-    """Extract the still poses of a bag into a capture directory and calibrate it."""
-    import tempfile
+                   tmp: str) -> 'Tuple[RigCalibration, str]':
+    """Extract the still poses of a bag into ``tmp`` and calibrate them; return the capture."""
+    from accelcal_ros.recording.cli_support import open_bag, warn
+    from accelcal_ros.rig.bag import capture_topics, extract_capture
+    from accelcal_ros.rig.calibrate import calibrate_directory
+    from accelcal_ros.rig.report import check_outputs
+
+    directory = os.path.join(tmp, 'capture')
+    with open_bag(args.directory, args.stamp) as bag:
+        _, cameras = capture_topics(bag, args.image_topics)
+        check_outputs(args.output, cameras, _inputs(args), args.export)  # before any work
+        model = _sensor_model(args)
+        capture = extract_capture(bag, args.image_topics, args.imu_topic, directory,
+                                  args.sync_s, args.min_still_s)
+    warn(capture.warnings)
+    for topic, name in zip(capture.topics, capture.cameras):
+        print(f'camera {name}: {topic}')
+    for line in capture.spans:
+        print(line)
+    result = calibrate_directory(directory, board, args.intrinsics, model,
+                                 args.reference, estimate_tilt=not args.level_board)
+    result.dropped_poses.update(capture.dropped)
+    return result, directory
+
+
+def _publish_export(capture: str, export: str) -> List[str]:
+    """
+    Copy the extracted capture to ``export`` as a whole (a hidden name, then renamed).
+
+    Return the missing parents it made (outermost first) and ``export`` last, for
+    :func:`_remove_made` should a later step fail; a failure here leaves nothing.
+    """
+    import shutil
 
     from accelcal_ros.errors import InputError
-    from accelcal_ros.recording.cli_support import open_bag, warn
-    from accelcal_ros.rig.bag import extract_capture
-    from accelcal_ros.rig.calibrate import calibrate_directory
 
-    if args.export and os.path.exists(args.export):
-        raise InputError(f'--export {args.export} exists; name a new folder')
-    with tempfile.TemporaryDirectory(prefix='accelcal_rig_') as tmp:
-        directory = args.export or os.path.join(tmp, 'capture')
-        with open_bag(args.directory, args.stamp) as bag:
-            capture = extract_capture(bag, args.image_topics, args.imu_topic, directory,
-                                      args.sync_s, args.min_still_s)
-        warn(capture.warnings)
-        for topic, name in zip(capture.topics, capture.cameras):
-            print(f'camera {name}: {topic}')
-        for line in capture.spans:
-            print(line)
-        result = calibrate_directory(directory, board, args.intrinsics, model,
-                                     args.reference, estimate_tilt=not args.level_board)
-    result.dropped_poses.update(capture.dropped)
-    return result
+    target = os.path.abspath(export)
+    parents, parent = [], os.path.dirname(target)
+    while not os.path.isdir(parent):
+        parents.insert(0, parent)
+        parent = os.path.dirname(parent)
+    partial = os.path.join(os.path.dirname(target),
+                           f'.{os.path.basename(target)}.partial-{os.getpid()}')
+    made: List[str] = []
+    try:
+        for folder in parents:
+            os.mkdir(folder)
+            made.append(folder)
+        shutil.copytree(capture, partial)
+        if os.path.lexists(target):
+            raise InputError(f'--export {export} appeared while the rig was calibrated; '
+                             'name a new folder')
+        os.rename(partial, target)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        _remove_made(made, None)
+        raise
+    return made + [target]
+
+
+def _remove_made(parents: List[str], export: Optional[str]) -> None:
+    """Remove the ``export`` this run made (whole), then the parents it made if empty."""
+    import shutil
+
+    if export is not None:
+        shutil.rmtree(export, ignore_errors=True)
+    for path in reversed(parents):
+        try:
+            os.rmdir(path)
+        except OSError:
+            pass
 
 
 def _calibrate(args: argparse.Namespace) -> int:
+    """
+    Calibrate; every output (rig file, report, plot, camera_info, export) checked first.
+
+    A failure leaves nothing written: the outputs are written last, the export is made
+    whole just before them and removed again if they fail.
+    """
+    import tempfile
+
+    from accelcal_ros.errors import InputError
     from accelcal_ros.recording.bag import is_bag
     from accelcal_ros.rig.board import Board, parse_board_size
     from accelcal_ros.rig.calibrate import calibrate_directory
-    from accelcal_ros.rig.report import report_lines, write_outputs
+    from accelcal_ros.rig.dataset import scan_directory
+    from accelcal_ros.rig.report import check_outputs, report_lines, write_outputs
 
     cols, rows = parse_board_size(args.board)
     board = Board(cols, rows, args.square_m)
-    model = None
-    if args.calibration:
-        from accelcal_ros.sensor.calibration_file import load_sensor_model
-
-        model = load_sensor_model(args.calibration)
-    if is_bag(args.directory):
-        result = _calibrate_bag(args, board, model)
-    else:
-        result = calibrate_directory(args.directory, board, args.intrinsics, model,
-                                     args.reference, estimate_tilt=not args.level_board)
-    for line in report_lines(result):
-        print(line)
-    for path in write_outputs(args.output, result):
+    with tempfile.TemporaryDirectory(prefix='accelcal_rig_') as tmp:
+        capture = None
+        if is_bag(args.directory):
+            result, capture = _calibrate_bag(args, board, tmp)
+        else:
+            if args.export:
+                raise InputError(f'--export is for a bag; {args.directory} is a capture '
+                                 'directory already')
+            cameras = scan_directory(args.directory, args.reference).cameras
+            check_outputs(args.output, cameras, _inputs(args))   # before any work
+            result = calibrate_directory(args.directory, board, args.intrinsics,
+                                         _sensor_model(args), args.reference,
+                                         estimate_tilt=not args.level_board)
+        for line in report_lines(result):
+            print(line)
+        made = _publish_export(capture, args.export) if capture and args.export else []
+        try:
+            paths = write_outputs(args.output, result)
+        except BaseException:
+            if made:
+                _remove_made(made[:-1], made[-1])
+            raise
+    for path in paths:
         print(f'wrote {path}')
+    if made:
+        print(f'wrote {args.export} (the capture directory)')
     return 0
 
 

@@ -20,6 +20,20 @@ from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
 import cv2
 import numpy as np
 
+GRAVITY_BAND_RAW_G = (0.7, 1.3)
+"""Mean still magnitude (g) an uncalibrated log must read to be gravity: a raw ADXL345 reads
+0.85-1.15 g at rest (field scales 0.8-1.2, biases of a few 0.01 g; paper A's K100 reads
+0.81 g on one axis); outside, the log is not gravity alone (a zero or stuck reading, free
+fall, a lasting acceleration) and its direction would pull ``imu_to_camera`` away."""
+GRAVITY_BAND_CALIBRATED_G = (0.9, 1.1)
+"""The same with a calibration: a fitting calibration brings a still reading within
+:data:`accelcal_ros.sensor.model.GRAVITY_FIT_TOLERANCE_G` (0.03 g) of 1 g; 0.1 g off (over
+three times that, a direction error of up to asin(0.1) = 5.7 deg) is not gravity alone, or
+the calibration is of another sensor."""
+MAX_READING_M_S2 = 1000.0 * STANDARD_GRAVITY_M_S2
+"""A sample above this (1000 g; the ADXL345 reads at most 16 g) is corrupt, not a force: the
+pose is dropped before any arithmetic that could overflow on it (1e300)."""
+
 
 @dataclass
 class Dataset:
@@ -99,14 +113,23 @@ def pose_gravity(path: str, model: Optional[SensorModel] = None,
 
     With an accelerometer ``model`` (``correct(raw_g) -> f_g``) the samples are corrected
     first. The log is still when one still segment (:mod:`accelcal_ros.sensor.stillness`)
-    covers at least half of it.
+    covers at least half of it; its mean must read 1 g (:data:`GRAVITY_BAND_RAW_G`, with a
+    model other than the identity :data:`GRAVITY_BAND_CALIBRATED_G`) and no sample may exceed
+    :data:`MAX_READING_M_S2`, else the pose is dropped with the reason.
     """
     t, accel = load_recording(path)
-    if model is not None:
-        accel = np.asarray(model.correct(accel / STANDARD_GRAVITY_M_S2)) * STANDARD_GRAVITY_M_S2
     duration = float(t[-1] - t[0]) if t.size > 1 else 0.0
     if t.size < 3 or duration <= 0:
         return None, f'{path}: too short ({t.size} samples); log the still rig for ~1 s'
+    largest = np.abs(accel).max(axis=1)
+    corrupt = np.flatnonzero(largest > MAX_READING_M_S2)
+    if corrupt.size:
+        k = int(corrupt[0])
+        return None, (f'corrupt accelerometer log: sample {k + 1} reads {largest[k]:.3g} m/s^2 '
+                      f'({corrupt.size} of {t.size} samples above {MAX_READING_M_S2:.0f} '
+                      'm/s^2, more than any accelerometer measures)')
+    if model is not None:
+        accel = np.asarray(model.correct(accel / STANDARD_GRAVITY_M_S2)) * STANDARD_GRAVITY_M_S2
     segments = still_segments(t, accel, thresholds=thresholds, accel_unit_m_s2=1.0,
                               min_still_s=0.5 * duration)
     if not segments:
@@ -114,4 +137,14 @@ def pose_gravity(path: str, model: Optional[SensorModel] = None,
         return None, (f'the IMU moved (accelerometer spread {spread:.2f} m/s^2 over '
                       f'{duration:.1f} s): hold the rig still while the pose is taken')
     best = max(segments, key=lambda s: s.samples)
-    return np.asarray(best.accel_mean, dtype=float), ''
+    mean = np.asarray(best.accel_mean, dtype=float)
+    magnitude_g = float(np.linalg.norm(mean)) / STANDARD_GRAVITY_M_S2
+    calibrated = model is not None and not model.is_identity()
+    low, high = GRAVITY_BAND_CALIBRATED_G if calibrated else GRAVITY_BAND_RAW_G
+    if not low <= magnitude_g <= high:
+        after = ' after the calibration' if calibrated else ' (uncalibrated)'
+        other = ', or a calibration of another sensor' if calibrated else ''
+        return None, (f'the accelerometer reads {magnitude_g:.3f} g{after}, not gravity (a '
+                      f'still pose reads {low:g}..{high:g} g): a zero or stuck sensor, an '
+                      f'acceleration{other}')
+    return mean, ''

@@ -72,10 +72,17 @@ def fit_imu_to_camera(board_poses: Dict[str, Tuple[np.ndarray, np.ndarray]],
     if len(poses) < 2:
         raise CalibrationError(f'imu_to_camera needs at least 2 poses with both a board view '
                                f'and a still accelerometer, got {len(poses)}: add poses')
+    forces = np.array([gravity[p] for p in poses], dtype=float)
+    usable = np.all(np.isfinite(forces), axis=1) & np.any(forces != 0, axis=1)
+    if not np.all(usable):
+        bad = poses[int(np.flatnonzero(~usable)[0])]
+        raise CalibrationError(f'{bad}: the mean specific force {list(gravity[bad])} has no '
+                               'direction (zero or not finite): drop the pose')
+    scaled = forces / np.abs(forces).max(axis=1, keepdims=True)   # no overflow on 1e300
+    f = _unit(scaled)
     rots = np.array([board_poses[p][0] for p in poses])
     centres_z = np.array([-(board_poses[p][0].T @ board_poses[p][1])[2] for p in poses])
     n0 = np.array([0.0, 0.0, 1.0 if np.mean(centres_z) > 0 else -1.0])
-    f = _unit(np.array([gravity[p] for p in poses]))
     up_cam0 = rots @ n0
     c0, _ = Rotation.align_vectors(up_cam0, f)
     c0 = c0.as_matrix()

@@ -11,12 +11,14 @@ frame) with 1-sigma about the reference camera's x, y, z axes, ``t_0i`` and base
 ``imu_to_camera`` with its 1-sigma, the board tilt, per-pose gravity errors, dropped
 views and poses with the reason, warnings and timings.
 """
+import os
 import textwrap
-from typing import List
+from typing import Dict, List, Optional, Sequence
 
 from accelcal_ros.camera import CameraModel
-from accelcal_ros.camera.rig import Rig, RigCamera, save_rig
-from accelcal_ros.fileio import write_text_atomic, write_with_atomic
+from accelcal_ros.camera.rig import Rig, rig_to_mapping, RigCamera
+from accelcal_ros.errors import InputError
+from accelcal_ros.fileio import refuse_overwriting_inputs, write_bytes_atomic, write_text_atomic
 from accelcal_ros.rig.calibrate import RigCalibration
 from accelcal_ros.textformats import dump_yaml
 import numpy as np
@@ -129,26 +131,84 @@ def report_lines(result: RigCalibration) -> List[str]:
     return lines
 
 
+def output_paths(path: str, cameras: Sequence[str]) -> List[str]:
+    """
+    Return every file :func:`write_outputs` writes for rig file ``path`` and ``cameras``.
+
+    ``path``, ``<stem>_report.yaml``, ``<stem>.png`` and per camera
+    ``<stem>_<camera>_camera_info.yaml`` (``<stem>``: ``path`` without ``.yaml``).
+    """
+    stem = path[:-5] if path.endswith('.yaml') else path
+    return ([path, stem + '_report.yaml', stem + '.png']
+            + [f'{stem}_{name}_camera_info.yaml' for name in cameras])
+
+
+def check_outputs(path: str, cameras: Sequence[str], inputs: Sequence[Optional[str]],
+                  export: Optional[str] = None) -> None:
+    """
+    Refuse now, before any work, what :func:`write_outputs` (and ``--export``) would fail on.
+
+    Each output (the derived ones too) must be none of ``inputs`` nor inside an input
+    directory, writable (no directory, device or FIFO there; a parent it can be made in)
+    and distinct from the others. ``export`` (a capture directory to create) must not
+    exist, must not lie inside an input and must not be one of the outputs.
+    """
+    from accelcal_ros.outputs import output_path_problem, parent_problem
+
+    given = [p for p in inputs if p]
+    paths = output_paths(path, cameras)
+    seen: Dict[str, str] = {}
+    for out in paths:
+        refuse_overwriting_inputs(out, given)
+        problem = output_path_problem(out)
+        if problem:
+            raise InputError(f'output {problem}')
+        real = os.path.realpath(out)
+        if real in seen:
+            raise InputError(f'{out} would be written twice (also as {seen[real]}): camera '
+                             'names and the rig file name collide; choose another -o')
+        seen[real] = out
+    if export is None:
+        return
+    if os.path.lexists(export):
+        raise InputError(f'--export {export} exists; name a new folder')
+    for item in given:
+        item_real = os.path.realpath(item)
+        export_real = os.path.realpath(export)
+        if os.path.isdir(item_real) and (export_real + os.sep).startswith(
+                item_real.rstrip(os.sep) + os.sep):
+            raise InputError(f'--export {export} is inside {item}, an input of the command; '
+                             'creating the capture there would change the input: choose a '
+                             'folder outside it')
+    if os.path.realpath(export) in seen:
+        raise InputError(f'--export {export} is also an output file; name another folder')
+    problem = parent_problem(export)
+    if problem:
+        raise InputError(f'--export {problem}')
+
+
 def write_outputs(path: str, result: RigCalibration) -> List[str]:
     """
     Write the rig file, its report, plot and camera_info files; return their paths.
 
     ``<stem>_report.yaml``, ``<stem>.png`` and per camera ``<stem>_<camera>_camera_info.yaml``
-    (camera_calibration_parsers YAML for a camera driver's ``camera_info_url``).
+    (camera_calibration_parsers YAML for a camera driver's ``camera_info_url``). Every
+    file's content is made first, then each is written atomically: a failure while making
+    them (the plot) writes nothing.
     """
-    from accelcal_ros.camera.camera_info import save_camera_info
+    from accelcal_ros.camera.camera_info import camera_info_mapping
 
-    stem = path[:-5] if path.endswith('.yaml') else path
-    report_path = stem + '_report.yaml'
-    plot_path = stem + '.png'
     rig = rig_of(result)
-    save_rig(path, rig)
-    write_text_atomic(report_path, dump_yaml(report_mapping(result)))
-    plot(plot_path, result)
-    info_paths = [f'{stem}_{cam.name}_camera_info.yaml' for cam in rig.cameras]
-    for cam, info_path in zip(rig.cameras, info_paths):
-        save_camera_info(info_path, cam.name, cam.model)
-    return [path, report_path, plot_path] + info_paths
+    paths = output_paths(path, [cam.name for cam in rig.cameras])
+    texts = [dump_yaml(rig_to_mapping(rig)), dump_yaml(report_mapping(result))]
+    png = plot_png(result)
+    infos = [dump_yaml(camera_info_mapping(cam.name, cam.model)) for cam in rig.cameras]
+    write_text_atomic(paths[0], texts[0])
+    write_text_atomic(paths[1], texts[1])
+    write_bytes_atomic(paths[2], png)
+    for info_path, text in zip(paths[3:], infos):
+        write_text_atomic(info_path, text)
+    return paths
 
 
 def _warning_text(warnings: List[str], width: int, most: int = 8) -> str:
@@ -162,12 +222,19 @@ def _warning_text(warnings: List[str], width: int, most: int = 8) -> str:
 
 
 def plot(path: str, result: RigCalibration) -> None:
+    """Write :func:`plot_png` to ``path`` (atomically)."""
+    write_bytes_atomic(path, plot_png(result))
+
+
+def plot_png(result: RigCalibration) -> bytes:
     """
-    Draw one PNG of the calibration.
+    Draw one PNG of the calibration; return its bytes.
 
     Per camera the corners used (coverage) coloured by view error, the rig seen from
     above, and per pose the gravity error of ``imu_to_camera``.
     """
+    import io
+
     import matplotlib
 
     matplotlib.use('Agg')
@@ -223,5 +290,9 @@ def plot(path: str, result: RigCalibration) -> None:
         axes[1, 2].text(0, 1, _warning_text(result.warnings, 55 * (cols - 2)), va='top',
                         fontsize=7, transform=axes[1, 2].transAxes, clip_on=False)
     fig.tight_layout()
-    write_with_atomic(path, lambda handle: fig.savefig(handle, format='png'), binary=True)
-    plt.close(fig)
+    buffer = io.BytesIO()
+    try:
+        fig.savefig(buffer, format='png')
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()

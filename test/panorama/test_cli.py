@@ -101,3 +101,28 @@ def test_study_horizon_quick(capsys):
     assert main(['study', 'horizon', '--quick', '--count', '3']) == 0
     out = capsys.readouterr().out
     assert 'paper' in out and '+2.0 deg' in out and 'own calibration' in out
+
+
+def test_a_failed_folder_output_removes_what_it_made_and_nothing_else(tmp_path):
+    """A run that fails mid-way left frame_000000.png... and new folders behind."""
+    import os
+
+    from accelcal_ros.panorama.bag import FrameSink
+
+    frame = np.zeros((8, 16, 3), np.uint8)
+    sink = FrameSink(tmp_path / 'a' / 'b' / 'frames', 10.0)
+    sink.write(frame)
+    sink.write(frame)
+    assert len(os.listdir(tmp_path / 'a' / 'b' / 'frames')) == 2
+    sink.close(ok=False)
+    assert not (tmp_path / 'a').exists()
+    (tmp_path / 'mine').mkdir()                  # an empty folder of the user's stays
+    sink = FrameSink(tmp_path / 'mine', 10.0)
+    sink.write(frame)
+    (tmp_path / 'mine' / 'notes.txt').write_text('kept')
+    sink.close(ok=False)
+    assert os.listdir(tmp_path / 'mine') == ['notes.txt']
+    sink = FrameSink(tmp_path / 'ok', 10.0)      # a success keeps its frames
+    sink.write(frame)
+    sink.close()
+    assert os.listdir(tmp_path / 'ok') == ['frame_000000.png']

@@ -109,3 +109,67 @@ def test_accelerometer_calibration_is_applied(tmp_path):
     assert np.allclose(corrected, 9.80665 * pose.specific_force, atol=1e-3)
     uncorrected, _ = pose_gravity(path)
     assert not np.allclose(uncorrected, corrected, atol=0.05)
+
+
+@pytest.mark.parametrize('reading, words', [
+    ([0.0, 0.0, 0.0], 'reads 0.000 g (uncalibrated), not gravity'),
+    ([0.0, 0.0, 4.9], 'reads 0.500 g (uncalibrated), not gravity'),
+    ([0.0, 1e300, 0.0], 'corrupt accelerometer log: sample 1 reads 1e+300 m/s^2'),
+])
+def test_a_still_log_that_is_not_gravity_drops_the_pose(tmp_path, reading, words):
+    """A zero, half-g or 1e300 still log had its 'direction' pull imu_to_camera away."""
+    import warnings
+
+    path = str(tmp_path / 'imu.csv')
+    write_imu_csv(path, {'t': np.arange(100) * 0.01, 'a': np.tile(reading, (100, 1))})
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', RuntimeWarning)
+        value, why = pose_gravity(path)
+    assert value is None and words in why, why
+    # with a fitted calibration the band is 0.9..1.1 g: 0.85 g is another sensor's calibration
+    write_imu_csv(path, {'t': np.arange(100) * 0.01, 'a': np.tile([0, 0, 0.85 * 9.80665],
+                                                                  (100, 1))})
+    assert pose_gravity(path)[0] is not None            # raw: within 0.7..1.3 g
+    model = SensorModel(np.array([1.01, 1.0, 1.0]), np.zeros(3), np.zeros(3))
+    value, why = pose_gravity(path, model)
+    assert value is None and 'after the calibration' in why and 'another sensor' in why
+
+
+def test_too_few_gravity_poses_names_why_they_were_dropped(small, tmp_path, capsys):
+    """Every pose's log reads 0 g: the error says so (was a NaN mounting or a bare count)."""
+    from accelcal_ros.camera import CameraModel
+    from accelcal_ros.camera.camera_info import save_camera_info
+
+    capture = _copy(small, tmp_path)
+    files = []
+    for name, size, k, d in zip(TRUTH.names, TRUTH.sizes, TRUTH.K, TRUTH.D):
+        files.append(str(tmp_path / f'{name}.yaml'))
+        save_camera_info(files[-1], name, CameraModel(size[0], size[1], k, d))
+    for pose in ('pose00', 'pose01', 'pose02'):
+        for other in TRUTH.names[1:]:   # one camera: no extrinsics needed
+            os.remove(capture / pose / f'{other}.png')
+        write_imu_csv(str(capture / pose / 'imu.csv'),
+                      {'t': np.arange(100) * 0.01, 'a': np.zeros((100, 3))})
+    assert _run(capture, tmp_path, '--intrinsics', files[0]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'needs at least 2 poses' in err and 'got 0' in err, err
+    assert '3 poses dropped: pose00: the accelerometer reads 0.000 g' in err
+    assert 'RuntimeWarning' not in err and 'nan' not in err.lower()
+
+
+def test_outputs_are_checked_before_any_work(small, tmp_path, capsys):
+    """A derived output that cannot be written is refused first, not after calibrating."""
+    (tmp_path / 'rig_report.yaml').mkdir()
+    assert _run(small, tmp_path) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'rig_report.yaml' in err and 'need at least 4' not in err
+    os.rmdir(tmp_path / 'rig_report.yaml')
+    out = tmp_path / 'rig_cam0_camera_info.yaml'
+    os.symlink(str(small / 'pose00' / 'imu.csv'), out)   # a derived output onto an input
+    assert _run(small, tmp_path) == 1
+    assert 'a directory the command reads' in capsys.readouterr().err
+    assert (small / 'pose00' / 'imu.csv').read_text().startswith('t')
+    os.remove(out)
+    assert _run(small, tmp_path, '--export', str(tmp_path / 'x')) == 1
+    assert '--export is for a bag' in capsys.readouterr().err
+    assert not (tmp_path / 'x').exists()

@@ -8,6 +8,8 @@ and three sets per still pose (the pose's images in the middle, noisier copies n
 ends, cameras a few ms apart). The same images and still IMU samples written as a
 capture directory give the reference calibration.
 """
+import os
+
 from accelcal_ros.camera.rig import load_rig
 from accelcal_ros.cli import main
 from accelcal_ros.recording.sim_bags import bag_path, T0_NS
@@ -190,3 +192,20 @@ def test_bad_recordings(tmp_path, capsys):
     same = _small_bag(bag_path(tmp_path, 'same', 'mcap'), 'mcap')
     assert _run(same, tmp_path) != 0
     assert 'no 11x8 board found in any image of poses pose00, pose01' in capsys.readouterr().err
+
+
+def test_export_is_checked_first_and_left_only_by_a_success(tmp_path, capsys):
+    """--export inside the input bag is refused before anything is made; a failure leaves none."""
+    bag = _small_bag(bag_path(tmp_path, 'same', 'mcap'), 'mcap')
+    before = sorted(os.listdir(bag))
+    assert _run(bag, tmp_path, '--export', os.path.join(bag, 'capture')) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'is inside' in err and 'an input of the command' in err
+    assert sorted(os.listdir(bag)) == before
+    export = tmp_path / 'new' / 'capture'          # its parent is made by the run, too
+    assert _run(bag, tmp_path, '--export', str(export)) != 0
+    assert 'no 11x8 board found' in capsys.readouterr().err
+    assert not (tmp_path / 'new').exists()
+    (tmp_path / 'taken').mkdir()
+    assert _run(bag, tmp_path, '--export', str(tmp_path / 'taken')) == 1
+    assert 'exists; name a new folder' in capsys.readouterr().err
