@@ -85,10 +85,12 @@ def register(subparsers: argparse._SubParsersAction,
         'error-budget', help='theoretical point error, paper B eq. (1)',
         description='sqrt(D_ins^2 + D_gnss^2 + D_lidar^2 + D_boresight^2) at a range.')
     e.add_argument('--range-m', type=float_in(0.0, 1e6), default=100.0)
-    e.add_argument('--attitude-deg', type=float_in(0.0, 180.0), default=0.1)
+    e.add_argument('--attitude-deg', type=float_in(0.0, 90.0, high_open=True), default=0.1,
+                   help='INS attitude error, deg (0 to < 90; default 0.1)')
     e.add_argument('--gnss-m', type=float_in(0.0, 1e6), default=0.01)
     e.add_argument('--lidar-m', type=float_in(0.0, 1e6), default=0.03)
-    e.add_argument('--boresight-deg', type=float_in(0.0, 180.0), nargs='+', default=[1.0, 0.3])
+    e.add_argument('--boresight-deg', type=float_in(0.0, 90.0, high_open=True), nargs='+',
+                   default=[1.0, 0.3], help='boresight errors, deg (0 to < 90; default 1 0.3)')
     e.add_argument('--sync-s', type=float_in(0.0, 3600.0), default=0.0,
                    help='time-sync error (s)')
     e.add_argument('--speed-m-s', type=float_in(0.0, 1e4), default=30 / 3.6)

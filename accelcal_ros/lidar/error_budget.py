@@ -19,6 +19,12 @@ The time-synchronisation term (left out of eq. 1 by the paper) is
 import math
 from typing import Dict, Tuple
 
+from accelcal_ros.errors import InputError
+
+MAX_ANGLE_DEG = 90.0
+"""Angular errors are in [0, 90) deg: at 90 deg the lateral error ``range tan`` is unbounded,
+beyond it the tangent turns negative (a 120 deg attitude error read as -173 m at 100 m)."""
+
 PAPER_RANGE_M = 100.0
 PAPER_ATTITUDE_DEG = 0.1
 PAPER_GNSS_M = 0.01
@@ -31,7 +37,16 @@ PAPER_TERMS_M = {'attitude': 0.18, 'gnss': 0.01, 'lidar': 0.03,
 
 
 def angle_to_metres(angle_deg: float, range_m: float) -> float:
-    """Return the lateral error (m) of an angular error ``angle_deg`` at ``range_m``."""
+    """
+    Return the lateral error (m) of an angular error ``angle_deg`` at ``range_m``.
+
+    ``angle_deg`` in [0, :data:`MAX_ANGLE_DEG`) (InputError otherwise: the tangent has no
+    lateral meaning at or past 90 deg).
+    """
+    if not 0.0 <= angle_deg < MAX_ANGLE_DEG:
+        raise InputError(f'an angular error of {angle_deg:g} deg is outside 0 to '
+                         f'{MAX_ANGLE_DEG:g} deg (its lateral error range * tan(angle) is '
+                         'unbounded or negative there)')
     return range_m * math.tan(math.radians(angle_deg))
 
 

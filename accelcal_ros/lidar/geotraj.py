@@ -105,8 +105,17 @@ def trajectory_problem(t: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
     return None
 
 
+MAX_ATTITUDE_DEG = 1e5
+"""Largest |roll|, |pitch|, |yaw| read (deg; an unwrapped heading of 277 turns): beyond it a
+value is corrupt (1e308 deg was read and gave an arbitrary orientation)."""
+
+
 def read_trajectory_csv(path: str, heading: str = 'enu') -> GeodeticTrajectory:
-    """Read ``t,lat,lon,h,roll,pitch,yaw`` (deg); errors name the file and line."""
+    """
+    Read ``t,lat,lon,h,roll,pitch,yaw`` (deg); errors name the file and line.
+
+    Angles are finite and within +-:data:`MAX_ATTITUDE_DEG`.
+    """
     from accelcal_ros.textformats import read_numeric_csv
 
     cols = read_numeric_csv(path, TRAJECTORY_COLUMNS)
@@ -118,6 +127,11 @@ def read_trajectory_csv(path: str, heading: str = 'enu') -> GeodeticTrajectory:
         att = np.stack([cols['roll'], cols['pitch'], cols['yaw']], axis=1)
         bad = np.flatnonzero(~np.all(np.isfinite(att), axis=1))
         problem = (int(bad[0]), 'roll, pitch or yaw is NaN or infinite') if bad.size else None
+        far = np.flatnonzero(np.any(np.abs(att) > MAX_ATTITUDE_DEG, axis=1))
+        if problem is None and far.size:
+            problem = (int(far[0]), f'roll, pitch or yaw beyond +-{MAX_ATTITUDE_DEG:g} deg '
+                                    f'({", ".join(f"{v:g}" for v in att[far[0]])}): a corrupt '
+                                    'value (its sine and cosine would be noise)')
     if problem is not None:
         raise FileFormatError(path, problem[1], problem[0] + 2)
     rot = enu_from_body_rpy(np.radians(cols['roll']), np.radians(cols['pitch']),

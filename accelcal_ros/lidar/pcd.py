@@ -22,6 +22,10 @@ import numpy as np
 
 _TYPE_CODES = {('F', 4): 'f4', ('F', 8): 'f8', ('U', 1): 'u1', ('U', 2): 'u2', ('U', 4): 'u4',
                ('U', 8): 'u8', ('I', 1): 'i1', ('I', 2): 'i2', ('I', 4): 'i4', ('I', 8): 'i8'}
+MAX_VALUES_PER_POINT = 10000
+"""Most scalar values per point (the sum of COUNT): PCL's largest point types hold a few
+hundred (ESF 640, SHOT 361, VFH 308); a header claiming more (COUNT 300000000 in a 90-byte
+file) would allocate gigabytes before the data is looked at."""
 _HEADER_KEYS = ('VERSION', 'FIELDS', 'SIZE', 'TYPE', 'COUNT', 'WIDTH', 'HEIGHT', 'VIEWPOINT',
                 'POINTS', 'DATA')
 
@@ -41,6 +45,7 @@ def _dtype_from_header(path, header, lines):
                                   'FIELDS', lines.get(key))
     descr = []
     seen = {}
+    total = 0
     for name, size, kind, count in zip(fields, sizes, types, counts):
         try:
             code = _TYPE_CODES[(kind.upper(), int(size))]
@@ -50,6 +55,10 @@ def _dtype_from_header(path, header, lines):
                                   f'COUNT {count}', lines.get('TYPE')) from None
         if count < 1:
             raise FileFormatError(path, f'field {name!r} has COUNT {count}', lines.get('COUNT'))
+        total += count
+        if total > MAX_VALUES_PER_POINT:
+            raise FileFormatError(path, f'COUNT adds up to more than {MAX_VALUES_PER_POINT} '
+                                  'values per point (a corrupt header?)', lines.get('COUNT'))
         if name == '_':  # PCL padding fields
             seen['_'] = seen.get('_', 0) + 1
             name = f'_pad{seen["_"]}'

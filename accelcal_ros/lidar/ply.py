@@ -7,7 +7,7 @@ in m plus e.g. ``intensity``, ``ring``, ``time``). Other elements after it are i
 Errors name the file and the header line or byte offset; writes are atomic.
 """
 import os
-from typing import List, Tuple
+from typing import Dict, List, Set, Tuple
 
 from accelcal_ros.errors import FileFormatError, PathLike
 from accelcal_ros.fileio import write_bytes_atomic
@@ -18,6 +18,8 @@ _PLY_TYPES = {'char': 'i1', 'int8': 'i1', 'uchar': 'u1', 'uint8': 'u1', 'short':
               'int16': 'i2', 'ushort': 'u2', 'uint16': 'u2', 'int': 'i4', 'int32': 'i4',
               'uint': 'u4', 'uint32': 'u4', 'float': 'f4', 'float32': 'f4', 'double': 'f8',
               'float64': 'f8'}
+MAX_PROPERTIES = 10000
+"""Most properties of one element (point clouds have a handful; 50000 took 31 s to read)."""
 _WRITE_NAMES = {'i1': 'char', 'u1': 'uchar', 'i2': 'short', 'u2': 'ushort', 'i4': 'int',
                 'u4': 'uint', 'f4': 'float', 'f8': 'double'}
 
@@ -30,6 +32,7 @@ def read_ply(path: PathLike) -> np.ndarray:
         raise FileFormatError(path, 'not a PLY file (first line is not "ply")', 1)
     fmt = None
     elements: List[Tuple[str, int, List[Tuple[str, str]]]] = []
+    names: Dict[int, Set[str]] = {}   # per element (1-based): its property names
     for line_no, text, offset in header_lines(
             path, raw, 'header has no end_header line (truncated file?)'):
         parts = text.split()
@@ -48,8 +51,13 @@ def read_ply(path: PathLike) -> np.ndarray:
             if count < 0:
                 raise FileFormatError(path, f'bad element count in {text!r}', line_no)
             elements.append((parts[1], count, []))
+            names[len(elements)] = set()
         elif parts[0] == 'property' and elements:
-            _add_property(path, elements[-1][2], parts, text, line_no)
+            if len(elements[-1][2]) >= MAX_PROPERTIES:
+                raise FileFormatError(path, f'element {elements[-1][0]!r} has more than '
+                                      f'{MAX_PROPERTIES} properties (a corrupt header?)',
+                                      line_no)
+            _add_property(path, elements[-1][2], parts, text, line_no, names[len(elements)])
         elif parts[0] == 'end_header':
             break
         else:
@@ -97,8 +105,12 @@ def read_ply(path: PathLike) -> np.ndarray:
     return cloud
 
 
-def _add_property(path, props, parts, text, line_no):
-    """Append ``(name, code)`` of a ``property TYPE NAME`` line (``list`` ones as 'list')."""
+def _add_property(path, props, parts, text, line_no, names):
+    """
+    Append ``(name, code)`` of a ``property TYPE NAME`` line (``list`` ones as 'list').
+
+    ``names``: the element's property names so far (updated).
+    """
     if len(parts) >= 2 and parts[1] == 'list':
         if len(parts) != 5:
             raise FileFormatError(path, f'malformed list property {text!r} (property list '
@@ -108,8 +120,9 @@ def _add_property(path, props, parts, text, line_no):
     if len(parts) != 3 or parts[1] not in _PLY_TYPES:
         raise FileFormatError(path, f'unsupported property {text!r} (property TYPE NAME, '
                               f'TYPE one of {", ".join(sorted(_PLY_TYPES))})', line_no)
-    if any(name == parts[2] for name, _ in props):
+    if parts[2] in names:
         raise FileFormatError(path, f'property {parts[2]!r} defined twice', line_no)
+    names.add(parts[2])
     props.append((parts[2], _PLY_TYPES[parts[1]]))
 
 

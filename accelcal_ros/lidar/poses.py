@@ -69,8 +69,9 @@ def check_pose_arrays(t: np.ndarray, position: np.ndarray,
     if bad.size:
         return int(bad[0]), (f'time {t[bad[0]]:g} s is beyond {MAX_TIME_S:g} s (not seconds? '
                              'nanoseconds must be divided by 1e9)')
-    norms = np.linalg.norm(quat, axis=1)
-    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
+    with np.errstate(over='ignore'):   # a component of 1e308: norm inf, refused below
+        norms = np.linalg.norm(quat, axis=1)
+    bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-3))
     if bad.size:
         k = int(bad[0])
         return k, f'quaternion norm {norms[k]:.6f} is not 1 (wrong column order?)'

@@ -1,5 +1,6 @@
 """PCD (ascii, binary, binary_compressed with LZF), PLY, IMU and pose CSV files."""
 import os
+import warnings
 
 from accelcal_ros.errors import FileFormatError, InputError
 from accelcal_ros.lidar import lzf
@@ -226,6 +227,13 @@ def test_imu_and_pose_csv_errors(tmp_path):
         read_poses_csv(path)
     with pytest.raises(InputError, match='out of order'):
         PoseStream([0.0, 2.0, 1.0], np.zeros((3, 3)), np.tile([0, 0, 0, 1.0], (3, 1)))
+    lines[2], lines[3] = lines[3], lines[2]
+    lines[2] = ','.join(lines[2].split(',')[:4] + ['1e308', '0', '0', '1'])
+    path.write_text('\n'.join(lines) + '\n')
+    with warnings.catch_warnings():   # the norm overflowed with a RuntimeWarning
+        warnings.simplefilter('error')
+        with pytest.raises(FileFormatError, match=r'poses\.csv:3: quaternion norm inf'):
+            read_poses_csv(path)
 
 
 def test_no_time_field_is_a_clear_error():
@@ -234,3 +242,32 @@ def test_no_time_field_is_a_clear_error():
     with pytest.raises(InputError, match='no per-point time field'):
         point_times(cloud)
     assert xyz(cloud).shape == (3, 3)
+
+
+def test_headers_claiming_huge_points_are_refused_before_allocating(tmp_path):
+    """COUNT 300000000 in a 90-byte PCD took 24 GB (killed); 50000 PLY properties took 31 s."""
+    from accelcal_ros.lidar.pcd import MAX_VALUES_PER_POINT
+    from accelcal_ros.lidar.ply import MAX_PROPERTIES
+
+    path = tmp_path / 'count.pcd'
+    for counts, fields in (('300000000', 'x'), ('6000 6000', 'x y')):
+        path.write_text(f'VERSION 0.7\nFIELDS {fields}\nSIZE {"4 " * len(fields.split())}\n'
+                        f'TYPE {"F " * len(fields.split())}\nCOUNT {counts}\nWIDTH 1\n'
+                        'HEIGHT 1\nPOINTS 1\nDATA ascii\n1\n')
+        with pytest.raises(FileFormatError, match=f':5: COUNT adds up to more than '
+                                                  f'{MAX_VALUES_PER_POINT}'):
+            read_pcd(path)   # from the header: nothing allocated
+    path.write_text('VERSION 0.7\nFIELDS h\nSIZE 4\nTYPE F\nCOUNT 640\nWIDTH 1\nHEIGHT 1\n'
+                    'POINTS 1\nDATA ascii\n' + ' '.join(['0.5'] * 640) + '\n')   # an ESF
+    assert read_pcd(path)[0]['h'].shape == (1, 640)
+    ply = tmp_path / 'many.ply'
+    names = [f'p{k}' for k in range(MAX_PROPERTIES + 1)]
+    ply.write_text('ply\nformat ascii 1.0\nelement vertex 1\n'
+                   + ''.join(f'property float {n}\n' for n in names) + 'end_header\n'
+                   + ' '.join(['1'] * len(names)) + '\n')
+    with pytest.raises(FileFormatError, match=f'more than {MAX_PROPERTIES} properties'):
+        read_ply(ply)
+    ply.write_text('ply\nformat ascii 1.0\nelement vertex 1\n'
+                   + ''.join(f'property float {n}\n' for n in names[:-1]) + 'end_header\n'
+                   + ' '.join(['1'] * (len(names) - 1)) + '\n')
+    assert len(read_ply(ply).dtype.names) == MAX_PROPERTIES

@@ -125,6 +125,8 @@ GOOD = [(100.0, 55.75, 37.6, 150.0, 0, 0, 0), (101.0, 55.7501, 37.6001, 150.0, 0
     ([GOOD[0], (101.0, 55.75, 200.0, 150.0, 0, 0, 0)], 'longitude 200 deg is outside'),
     ([GOOD[0], (101.0, 'nan', 37.6, 150.0, 0, 0, 0)], 'NaN'),
     ([GOOD[1], GOOD[0]], 'time goes backwards'),
+    ([GOOD[0], (101.0, 55.7501, 37.6001, 150.0, 0, 0, 1e308)],   # was read: any orientation
+     'roll, pitch or yaw beyond +-100000 deg'),
 ])
 def test_bad_trajectory_is_one_line(tmp_path, capsys, scan, boresight_file, rows, expected):
     """Each bad trajectory: exit 1, one line naming the file and line, no output."""

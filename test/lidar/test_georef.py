@@ -257,3 +257,22 @@ def test_assembler_drops_points_in_a_pose_gap_instead_of_interpolating_across_it
     stats, error, asm = results[0.25]
     assert stats.in_gap == int(inside.sum()) > 0 and error.max() < 1e-3
     assert asm.totals['in_gap'] == stats.in_gap and 'in pose gaps' in asm.summary()
+
+
+def test_error_budget_refuses_angles_without_a_lateral_error(capsys):
+    """--attitude-deg 120 printed an attitude term of -173.205 m; 90 deg is unbounded."""
+    from accelcal_ros.cli import main
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.lidar.error_budget import angle_to_metres
+
+    for angle in (90.0, 120.0, 179.0, -1.0):
+        with pytest.raises(InputError, match='outside 0 to 90 deg'):
+            angle_to_metres(angle, 100.0)
+    assert angle_to_metres(89.0, 100.0) == pytest.approx(100.0 * np.tan(np.radians(89.0)))
+    for option in ('--attitude-deg', '--boresight-deg'):
+        for value in ('90', '120'):
+            assert main(['error-budget', option, value]) == 2
+            err = capsys.readouterr().err
+            assert err.count('\n') == 1 and option in err and 'must be < 90' in err
+    assert main(['error-budget', '--attitude-deg', '45']) == 0
+    assert 'attitude 100.000 m' in capsys.readouterr().out   # 100 m x tan 45 deg
