@@ -61,7 +61,8 @@ def register(subparsers: argparse._SubParsersAction,
                     'trajectory (--trajectory CSV, or --navsat + --imu/--odom in a bag) each '
                     'point goes through the ENU frame of its pose to ECEF and the map '
                     'projection (PROJ): UTM of the first fix or --crs; .laz/.las carry the CRS.')
-    g.add_argument('--cloud', help='scan (.pcd/.ply) with per-point time (or a BAG)')
+    g.add_argument('--cloud', help='scan (.pcd/.ply) with per-point time (a recording: give '
+                                   'it as BAG)')
     g.add_argument('--poses', help='CSV t,x,y,z,qx,qy,qz,qw (IMU -> nav; or --odom)')
     _add_georeference_bag_arguments(g)
     g.add_argument('--boresight', required=True, help='boresight YAML (R or rpy_deg)')
@@ -73,7 +74,8 @@ def register(subparsers: argparse._SubParsersAction,
     g.add_argument('--time-field', help='per-point time field (default: time, t or '
                                         'timestamp)')
     g.add_argument('--data', choices=('binary', 'ascii', 'binary_compressed'),
-                   default='binary', help='output encoding (binary_compressed: PCD only)')
+                   default=None, help='output encoding of .pcd/.ply (default binary; '
+                                      'binary_compressed: PCD only)')
     g.add_argument('-o', '--output', required=True,
                    help='output cloud (.ply or .pcd; .laz or .las with a geodetic trajectory)')
     from accelcal_ros.lidar.geo_cli import add_arguments as add_geodetic_arguments
@@ -185,7 +187,7 @@ def _georeference_bag(args: argparse.Namespace) -> int:
                                                      args.lever_arm, args.time_field,
                                                      args.max_gap_s)
     warn(warnings)
-    write_cloud(args.output, cloud, args.data)
+    write_cloud(args.output, cloud, args.data or 'binary')
     print(f'{totals["kept"]} of {totals["total"]} points georeferenced; dropped '
           f'{totals["before_span"]} before and {totals["after_span"]} after the pose stream, '
           f'{totals["in_gap"]} in gaps longer than --max-gap-s, {totals["non_finite"]} '
@@ -245,6 +247,7 @@ def _georeference(args: argparse.Namespace) -> int:
 
     geo_cli.check_output(args.output, geo_cli.wants_map(args))
     geo_cli.refuse_geodetic_options(args)
+    geo_cli.refuse_unread_options(args)
     if geo_cli.wants_map(args):
         from accelcal_ros.lidar.boresight import load_boresight
 
@@ -288,7 +291,7 @@ def _georeference(args: argparse.Namespace) -> int:
     out = make_cloud(pts, cloud['intensity'][keep] if 'intensity' in names else None,
                      cloud['ring'][keep] if 'ring' in names else None, times[keep],
                      'timestamp', double=True)
-    write_cloud(args.output, out, args.data)
+    write_cloud(args.output, out, args.data or 'binary')
     print(stats.summary())
     print(f'wrote {args.output}')
     return 0

@@ -30,7 +30,7 @@ def add_arguments(g: argparse.ArgumentParser) -> None:
                    help='geodetic trajectory t,lat,lon,h,roll,pitch,yaw (deg, WGS84 '
                         'ellipsoidal h): the body in local ENU (yaw 0 = east, CCW), or see '
                         '--heading; output in a map CRS')
-    g.add_argument('--heading', choices=('enu', 'ned'), default='enu',
+    g.add_argument('--heading', choices=('enu', 'ned'), default=None,
                    help='--trajectory angles: enu (REP-103, default) or ned (INS: roll/pitch '
                         'of the forward-right-down body in NED, heading from north, clockwise)')
     g.add_argument('--navsat', metavar='TOPIC',
@@ -143,7 +143,7 @@ def _run(args: argparse.Namespace, geo: 'MapGeoreferencer', feed: Any) -> int:
     for line in geo.report_lines():
         print(line)
     warn(geo.warnings())
-    out = MapCloudOutput(args.output, geo, args.data)
+    out = MapCloudOutput(args.output, geo, args.data or 'binary')
     try:
         totals, warnings = feed(out)
         if totals['kept'] == 0:
@@ -171,7 +171,7 @@ def georeference_map(args: argparse.Namespace, boresight: np.ndarray) -> int:
     if not args.cloud or not args.trajectory:
         raise InputError('georeference needs --cloud with --trajectory, or a BAG with --navsat '
                          '(or --trajectory)')
-    traj = read_trajectory_csv(args.trajectory, args.heading)
+    traj = read_trajectory_csv(args.trajectory, args.heading or 'enu')
     geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, _max_gap(args))
     return _run(args, geo, lambda out: _feed_file(args, geo, out))
 
@@ -206,7 +206,7 @@ def _georeference_bag(args: argparse.Namespace, boresight: np.ndarray) -> int:
 
     with open_bag(args.bag, args.stamp) as bag:
         if args.trajectory:
-            traj = read_trajectory_csv(args.trajectory, args.heading)
+            traj = read_trajectory_csv(args.trajectory, args.heading or 'enu')
         else:
             traj = read_geodetic_trajectory(bag, args.navsat, args.imu, args.odom)
         geo = MapGeoreferencer(traj, boresight, args.lever_arm, args.crs, _max_gap(args))
@@ -244,6 +244,42 @@ def refuse_geodetic_options(args: argparse.Namespace) -> None:
                          'geodetic trajectory (--trajectory or --navsat); --poses/--odom give '
                          'points in their local navigation frame, which has no map CRS: drop '
                          f'{names} or give a geodetic trajectory')
+
+
+#: options that only a BAG input reads (``dest``: option)
+BAG_ONLY_OPTIONS = {'points': '--points', 'odom': '--odom', 'navsat': '--navsat',
+                    'imu': '--imu'}
+
+
+def refuse_unread_options(args: argparse.Namespace) -> None:
+    """
+    Refuse an option the inputs or the output would ignore, before anything is read.
+
+    A BAG and ``--cloud`` both (one source of scans); a bag topic (``--points``, ``--odom``,
+    ``--navsat``, ``--imu``) without a BAG; ``--heading`` without ``--trajectory`` (it is the
+    convention of that file's angles); ``--data`` for LAS/LAZ (which has one encoding), or
+    ``binary_compressed`` for anything but ``.pcd``. Each was silently ignored.
+    """
+    if args.bag and args.cloud:
+        raise InputError(f'give the scans once: the BAG {args.bag} (its --points topic) or '
+                         f'--cloud {args.cloud}, not both')
+    if not args.bag:
+        given = [option for dest, option in BAG_ONLY_OPTIONS.items()
+                 if getattr(args, dest, None) is not None]
+        if given:
+            raise InputError(f'{" and ".join(given)} name{"s" if len(given) == 1 else ""} '
+                             'a topic of a BAG, and no BAG is given: give the BAG, or the '
+                             'poses as --poses or --trajectory with --cloud')
+    if args.heading is not None and not args.trajectory:
+        raise InputError("--heading is the convention of the --trajectory file's angles; "
+                         'without --trajectory it is not read: leave it out')
+    ext = os.path.splitext(args.output or '')[1].lower()
+    if args.data is not None and ext in ('.las', '.laz'):
+        raise InputError(f'--data is the encoding of a .pcd or .ply output; {args.output} is '
+                         'LAS/LAZ, which has one: leave it out')
+    if args.data == 'binary_compressed' and ext != '.pcd':
+        raise InputError(f'--data binary_compressed is a PCD encoding; {args.output} is not '
+                         '.pcd: write a .pcd, or use binary or ascii')
 
 
 def add_study(study_subparsers: Any) -> None:

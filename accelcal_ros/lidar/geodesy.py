@@ -150,6 +150,13 @@ def resolve_crs(text: Optional[str], lat_deg: float, lon_deg: float) -> 'MapProj
     except CRSError:
         raise InputError(f'unknown CRS {text!r}: give a projected CRS PROJ knows, e.g. '
                          'EPSG:32637 (WGS 84 / UTM 37N)') from None
+    if crs.is_compound:
+        horizontal = next((sub for sub in crs.sub_crs_list if sub.is_projected), None)
+        hint = (f'EPSG:{horizontal.to_epsg()}' if horizontal is not None
+                and horizontal.to_epsg() else 'its horizontal CRS alone')
+        raise InputError(f'CRS {text!r} ({crs.name}) has a vertical part: the heights written '
+                         'are WGS84 ellipsoidal (no geoid grid is applied), which a file '
+                         f'labelled with it would misstate; give {hint}')
     if not crs.is_projected:
         raise InputError(f'CRS {text!r} ({crs.name}) is not a projected CRS: a cloud needs '
                          'metric map coordinates (e.g. EPSG:32637)')
@@ -237,6 +244,31 @@ class MapProjection:
 
         f = Proj(self.crs).get_factors(lon_deg, lat_deg)
         return ProjectionFactors(float(f.meridian_convergence), float(f.meridional_scale))
+
+    def outside_area_of_use(self, lat_deg: ArrayLike, lon_deg: ArrayLike) -> Optional[str]:
+        """
+        Return a warning when a fix (deg) lies outside the CRS's area of use, else None.
+
+        The area of use is PROJ's (west, south, east, north bounds, deg); a CRS without one
+        (a custom PROJ string) gives None.
+        """
+        area = self.crs.area_of_use
+        if area is None:
+            return None
+        lat = np.asarray(lat_deg, float).reshape(-1)
+        lon = np.asarray(lon_deg, float).reshape(-1)
+        west, south, east, north = area.bounds
+        inside_lon = ((lon >= west) & (lon <= east) if west <= east
+                      else (lon >= west) | (lon <= east))   # an area across the antimeridian
+        outside = np.flatnonzero(~(inside_lon & (lat >= south) & (lat <= north)))
+        if not outside.size:
+            return None
+        k = int(outside[0])
+        f = self.factors(float(lat[k]), float(lon[k]))
+        return (f'{outside.size} of {lat.size} fixes (the first at {lat[k]:.6f}, {lon[k]:.6f}) '
+                f'lie outside the area of use of {self.name} (lon {west:g}..{east:g}, lat '
+                f'{south:g}..{north:g}; scale factor {f.scale:.6f} there): is this the CRS of '
+                'the survey?')
 
     def describe(self, lat_deg: float, lon_deg: float) -> List[str]:
         """Return report lines: the CRS, and the convergence and scale at a point."""

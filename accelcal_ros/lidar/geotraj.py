@@ -177,11 +177,18 @@ class MapGeoreferencer:
         return lines
 
     def warnings(self) -> List[str]:
-        """Return warnings about the trajectory (zone crossing, when the zone was chosen)."""
-        crossing = None
-        if not self.crs_given:
-            crossing = self.trajectory.zone_warning()
-        return list(self.trajectory.warnings) + ([crossing] if crossing else [])
+        """
+        Return warnings about the trajectory.
+
+        A zone crossing when the zone was chosen here; fixes outside the area of use of a
+        CRS given with ``--crs`` (e.g. UTM zone 1N for Moscow: scale factor 1.055).
+        """
+        if self.crs_given:
+            warning = self.projection.outside_area_of_use(self.trajectory.lat_deg,
+                                                          self.trajectory.lon_deg)
+        else:
+            warning = self.trajectory.zone_warning()
+        return list(self.trajectory.warnings) + ([warning] if warning else [])
 
     def georeference(self, points: ArrayLike, times: ArrayLike
                      ) -> Tuple[np.ndarray, np.ndarray, GeorefStats]:

@@ -142,7 +142,11 @@ def test_bad_trajectory_is_one_line(tmp_path, capsys, scan, boresight_file, rows
 
 @pytest.mark.parametrize('crs, expected', [('EPSG:999999', 'unknown CRS'),
                                            ('not-a-crs', 'unknown CRS'),
-                                           ('EPSG:4326', 'not a projected CRS')])
+                                           ('EPSG:4326', 'not a projected CRS'),
+                                           ('EPSG:5773', 'not a projected CRS'),
+                                           # EGM96 in the file, ellipsoidal h in the points
+                                           ('EPSG:32637+5773', 'has a vertical part'),
+                                           ('EPSG:32637+5773', 'give EPSG:32637')])
 def test_bad_crs_is_one_line(tmp_path, capsys, scan, boresight_file, crs, expected):
     """An unknown or geographic CRS: one line, exit 1."""
     _trajectory(tmp_path / 'traj.csv', GOOD)
@@ -151,6 +155,24 @@ def test_bad_crs_is_one_line(tmp_path, capsys, scan, boresight_file, crs, expect
                  '--crs', crs, '-o', str(tmp_path / 'o.laz')]) == 1
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and expected in err
+
+
+def test_a_crs_whose_area_of_use_misses_the_survey_is_warned(
+        tmp_path, capsys, scan, boresight_file):
+    """--crs EPSG:32601 (UTM 1N) for Moscow was written without a word (scale 1.055)."""
+    _trajectory(tmp_path / 'traj.csv', GOOD)
+    for crs, warned in (('EPSG:32601', True), ('EPSG:32637', False), ('EPSG:3857', False)):
+        out = tmp_path / f'{crs[5:]}.laz'
+        assert main(['georeference', '--cloud', str(scan), '--trajectory',
+                     str(tmp_path / 'traj.csv'), '--boresight', str(boresight_file),
+                     '--crs', crs, '-o', str(out)]) == 0
+        warnings = [line for line in capsys.readouterr().err.splitlines()
+                    if 'area of use' in line]
+        assert len(warnings) == int(warned), warnings
+        if warned:
+            assert 'lon -180..-174' in warnings[0] and '2 of 2 fixes' in warnings[0]
+            assert 'scale factor 1.05' in warnings[0]
+        assert laspy.read(out).header.parse_crs().to_epsg() == int(crs[5:])
 
 
 def test_zone_crossing_keeps_the_first_zone(tmp_path, capsys, scan, boresight_file):
@@ -220,3 +242,38 @@ def test_geodetic_options_with_local_poses_are_refused(tmp_path, capsys, boresig
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and extra[0] in err and 'geodetic trajectory' in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize('extra, out_name, words', [
+    (['--heading', 'ned'], 'o.ply', '--heading is the convention of the --trajectory'),
+    (['--points', '/velodyne_points'], 'o.ply', '--points names a topic of a BAG'),
+    (['--odom', '/odom', '--points', '/p'], 'o.ply', '--points and --odom name a topic'),
+    (['--data', 'binary_compressed'], 'o.ply', 'binary_compressed is a PCD encoding'),
+    (['BAG'], 'o.ply', 'give the scans once'),
+])
+def test_an_option_the_inputs_would_ignore_is_refused(tmp_path, capsys, boresight_file,
+                                                      extra, out_name, words):
+    """Each was silently ignored (--heading ned on local poses, a BAG beside --cloud...)."""
+    write_pcd(tmp_path / 'scan.pcd', make_cloud(np.ones((3, 3)), time=np.zeros(3)))
+    write_text_atomic(tmp_path / 'poses.csv', 't,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n'
+                                              '1,1,0,0,0,0,0,1\n')
+    extra = [str(tmp_path) if e == 'BAG' else e for e in extra]
+    out = tmp_path / out_name
+    assert main(['georeference', '--cloud', str(tmp_path / 'scan.pcd'), '--poses',
+                 str(tmp_path / 'poses.csv'), '--boresight', str(boresight_file), *extra,
+                 '-o', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and words in err, err
+    assert not out.exists()
+
+
+def test_data_encoding_for_las_is_refused(tmp_path, capsys, scan, boresight_file):
+    """--data ascii -o x.laz wrote a binary LAZ without a word; --heading goes with it fine."""
+    _trajectory(tmp_path / 'traj.csv', GOOD)
+    args = ['georeference', '--cloud', str(scan), '--trajectory', str(tmp_path / 'traj.csv'),
+            '--boresight', str(boresight_file), '--heading', 'enu']
+    assert main(args + ['--data', 'ascii', '-o', str(tmp_path / 'o.laz')]) == 1
+    assert 'LAS/LAZ, which has one' in capsys.readouterr().err
+    assert not (tmp_path / 'o.laz').exists()
+    assert main(args + ['--data', 'ascii', '-o', str(tmp_path / 'o.ply')]) == 0
+    assert (tmp_path / 'o.ply').read_bytes().startswith(b'ply\nformat ascii')
