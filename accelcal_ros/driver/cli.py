@@ -224,7 +224,7 @@ def _check_outputs(args):
 
     if bool(args.output) == bool(args.bag):
         raise InputError('record needs one output: -o FILE.csv or --bag DIR')
-    if int(round(args.duration * args.rate)) < MIN_RECORD_SAMPLES:
+    if args.duration * args.rate < MIN_RECORD_SAMPLES * (1.0 - 1e-9):   # one sample period
         raise InputError(f'--duration {args.duration:g} s at --rate {args.rate:g} Hz gives no '
                          f'sample (needs at least {MIN_RECORD_SAMPLES / args.rate:g} s at this '
                          'rate)')

@@ -263,12 +263,11 @@ class MapProjection:
         outside = np.flatnonzero(~(inside_lon & (lat >= south) & (lat <= north)))
         if not outside.size:
             return None
-        k = int(outside[0])
-        f = self.factors(float(lat[k]), float(lon[k]))
+        k = int(outside[0])   # PROJ's scale factor there can be meaningless: not quoted
         return (f'{outside.size} of {lat.size} fixes (the first at {lat[k]:.6f}, {lon[k]:.6f}) '
                 f'lie outside the area of use of {self.name} (lon {west:g}..{east:g}, lat '
-                f'{south:g}..{north:g}; scale factor {f.scale:.6f} there): is this the CRS of '
-                'the survey?')
+                f'{south:g}..{north:g}), where its coordinates are distorted or invalid: is '
+                'this the CRS of the survey?')
 
     def describe(self, lat_deg: float, lon_deg: float) -> List[str]:
         """Return report lines: the CRS, and the convergence and scale at a point."""

@@ -274,3 +274,7 @@ def test_apply_to_a_bag_skips_and_counts_non_finite_messages(tmp_path, recording
     assert main(['apply', bag_of('nan', np.full((5, 3), np.nan)), '--calibration', str(calib),
                  '-o', str(tmp_path / 'out2')]) == 1
     assert 'no usable' in _one_error_line(capsys) and not (tmp_path / 'out2').exists()
+    assert main(['apply', bag_of('empty', np.zeros((0, 3))), '--calibration', str(calib),
+                 '-o', str(tmp_path / 'out3')]) == 1
+    assert 'is empty (0 messages)' in _one_error_line(capsys)   # refused before 'no usable'
+    assert not (tmp_path / 'out3').exists()

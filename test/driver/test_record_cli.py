@@ -36,9 +36,11 @@ def test_a_recording_of_no_sample_is_refused_before_recording(tmp_path, capsys):
     for argv in (['-o', str(out), '--duration', '0.001'],
                  ['-o', str(out), '--duration', '0.05', '--rate', '6.25'],
                  ['--bag', str(bag), '--duration', '0.001'],
-                 ['-o', str(out), '--sim-bus', 'spi', '--duration', '0.001']):
+                 ['-o', str(out), '--sim-bus', 'spi', '--duration', '0.001'],
+                 ['-o', str(out), '--duration', '0.1', '--rate', '6.25']):   # 0.625 periods
         assert main(['record', *argv]) == 1, argv
-        assert 'gives no sample' in _one_error_line(capsys)
+        line = _one_error_line(capsys)
+        assert 'gives no sample' in line and 'needs at least' in line
     assert not out.exists() and not bag.exists()
     assert main(['record', '-o', str(out), '--duration', '0.16', '--rate', '6.25']) == 0
     assert len(load_recording(out)[0]) == 1
