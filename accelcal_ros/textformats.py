@@ -170,10 +170,12 @@ def yaml_number(value: Any) -> Optional[float]:
 MAX_YAML_NODES = 1_000_000
 
 #: most separators (:func:`_separator_count`) a YAML file may hold before it is parsed: at
-#: most ~200000 values, about a second to parse with libyaml. The package's own files hold
-#: hundreds to a few thousand (a calibration ~8 per captured position); a rosbag2
-#: ``metadata.yaml`` ~50 per topic and ~12 per split file (1000 topics and 4000 files fit).
-MAX_YAML_SEPARATORS = 100_000
+#: most ~600000 values; the worst case at the limit (one dense flow list) parses in about
+#: 2 s with libyaml. The package's own files hold hundreds to a few thousand (a calibration
+#: ~8 per captured position); a rosbag2 ``metadata.yaml`` ~50 per topic with its QoS and
+#: ~16 per split file: 1000 topics and 4000 split files are 1.4 MB and 107000 separators
+#: (0.7 s), which the limit takes with room.
+MAX_YAML_SEPARATORS = 300_000
 
 
 def _expanded_size_exceeds(data, limit):

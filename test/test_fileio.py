@@ -276,3 +276,31 @@ def test_integer_beyond_a_double_names_its_key(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and len(err) == 1, err
     assert 'rpy_deg[0]' in err[0] and 'too large' in err[0], err
+
+
+def test_the_largest_real_yaml_a_rosbag2_metadata_file_is_read(tmp_path):
+    """1000 topics with QoS and 4000 split files (1.4 MB): 107000 separators, refused at 1e5."""
+    from accelcal_ros.textformats import _separator_count, MAX_YAML_SEPARATORS
+
+    qos = ('      offered_qos_profiles:\n      - avoid_ros_namespace_conventions: false\n'
+           '        deadline:\n          nsec: 0\n          sec: 0\n        depth: 5\n'
+           '        durability: volatile\n        history: keep_last\n        lifespan:\n'
+           '          nsec: 0\n          sec: 0\n        liveliness: system_default\n'
+           '        liveliness_lease_duration:\n          nsec: 0\n          sec: 0\n'
+           '        reliability: best_effort\n')
+    files = ''.join(f'  - duration:\n      nanoseconds: 1490000000\n    message_count: 242\n'
+                    f'    path: bag_{k}.mcap\n    starting_time:\n'
+                    '      nanoseconds_since_epoch: 1700000000000000000\n' for k in range(4000))
+    topics = ''.join(f'  - message_count: 150\n    topic_metadata:\n      name: /t{k}\n' + qos
+                     + '      serialization_format: cdr\n      type: sensor_msgs/msg/Imu\n'
+                     '      type_description_hash: RIHS01_7d9a00ff131080897a5ec7e26e3159\n'
+                     for k in range(1000))
+    text = ('rosbag2_bagfile_information:\n  duration:\n    nanoseconds: 1490000000\n'
+            '  files:\n' + files + '  message_count: 242\n  relative_file_paths:\n'
+            + ''.join(f'  - bag_{k}.mcap\n' for k in range(4000))
+            + '  storage_identifier: mcap\n  topics_with_message_count:\n' + topics)
+    assert 100_000 < _separator_count(text) <= MAX_YAML_SEPARATORS
+    path = tmp_path / 'metadata.yaml'
+    path.write_text(text)
+    info = load_yaml_mapping(path)['rosbag2_bagfile_information']
+    assert len(info['files']) == 4000 and len(info['topics_with_message_count']) == 1000
