@@ -11,6 +11,7 @@ the times go backwards or jump, and when the header stamps are far from the rece
 is 720 000 samples, 50 MB); clouds and images are streamed by the commands themselves.
 """
 from dataclasses import dataclass, field
+import math
 from typing import Any, List, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
@@ -263,9 +264,20 @@ class AttitudeStream:
     warnings: List[str] = field(default_factory=list)
 
 
+MAX_ATTITUDE_RAD = 2.0 * math.pi
+"""Largest |roll|, |pitch| read from an attitude topic (rad); beyond it (1e300) a sample is
+corrupt and skipped, as NaN and infinite ones are."""
+
+
 def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitude'
                   ) -> AttitudeStream:
-    """Read the attitude node's geometry_msgs/Vector3Stamped topic (x roll, y pitch, rad)."""
+    """
+    Read the attitude node's geometry_msgs/Vector3Stamped topic (x roll, y pitch, rad).
+
+    Samples with a NaN, infinite or absurd (beyond :data:`MAX_ATTITUDE_RAD`) roll or pitch
+    are skipped with a warning (a frame is never levelled with them); none usable is an
+    InputError.
+    """
     name = bag.select_topic(topic, (convert.VECTOR3_STAMPED,), option)
     stamp_log = StampLog()
     rp: List[Tuple[float, float]] = []
@@ -274,6 +286,15 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
         stamp_log.add(message)
     t, warnings = stamp_log.times_s(bag.stamp), stamp_log.warnings(name, bag.stamp)
     t, (roll_pitch,), more = _sorted_unique(name, t, np.array(rp).reshape(-1, 2))
+    with np.errstate(invalid='ignore'):
+        usable = np.all(np.abs(roll_pitch) <= MAX_ATTITUDE_RAD, axis=1)   # NaN: False
+    if t.size and not usable.any():
+        raise InputError(f'{name}: no usable roll/pitch: all {t.size} samples are NaN, '
+                         f'infinite or beyond +-{MAX_ATTITUDE_RAD:.4g} rad')
+    if not usable.all():
+        more.append(f'{name}: {int(np.count_nonzero(~usable))} of {t.size} samples with a '
+                    'NaN, infinite or absurd roll/pitch skipped')
+        t, roll_pitch = t[usable], roll_pitch[usable]
     return AttitudeStream(name, t, roll_pitch[:, 0], roll_pitch[:, 1], warnings + more)
 
 

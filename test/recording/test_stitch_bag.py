@@ -95,3 +95,31 @@ def test_stitch_bag_video_and_bad_topics(recording, tmp_path, capsys):
                      '--attitude', '/attitude', '-o', str(tmp_path / name)]) != 0
         assert 'a recording gives many frames' in capsys.readouterr().err
         assert not (tmp_path / name).exists()
+
+
+def test_an_attitude_topic_with_impossible_samples(tmp_path, capsys):
+    """NaN, inf and 1e300 roll/pitch were passed on (serve started, then refused each tab)."""
+    from accelcal_ros.errors import InputError
+    from accelcal_ros.recording.bag import BagReader
+    from accelcal_ros.recording.streams import read_attitude
+
+    def bag_of(name, values):
+        path = bag_path(tmp_path, name, 'mcap')
+        with BagWriter(path) as writer:
+            writer.add_topic('/attitude', 'geometry_msgs/Vector3Stamped')
+            for k, (roll, pitch) in enumerate(values):
+                ns = T0_NS + k * 100_000_000
+                writer.write('/attitude', ns,
+                             writer.vector3_stamped_message(ns, (roll, pitch, 0), 'imu'))
+        return path
+
+    mixed = bag_of('mixed', [(0.1, 0.2), (math.nan, 0.0), (0.0, math.inf), (1e300, 0.0),
+                             (-0.1, -0.2)])
+    with BagReader(mixed) as bag:
+        att = read_attitude(bag, '/attitude')
+    assert np.allclose(att.roll, [0.1, -0.1]) and np.allclose(att.pitch, [0.2, -0.2])
+    assert any('3 of 5 samples' in w and 'skipped' in w for w in att.warnings)
+    bad = bag_of('bad', [(math.nan, 0.0), (0.0, 1e300)])
+    with BagReader(bad) as bag:
+        with pytest.raises(InputError, match='no usable roll/pitch: all 2 samples'):
+            read_attitude(bag, '/attitude')
