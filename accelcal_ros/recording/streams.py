@@ -301,7 +301,19 @@ def read_attitude(bag: BagReader, topic: Optional[str], option: str = '--attitud
 def attitude_series(bag: BagReader, attitude_topic: Optional[str], imu_topic: Optional[str],
                     model: Optional['SensorModel'] = None
                     ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[str]]:
-    """Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic."""
+    """
+    Return ``(t_s absolute, roll, pitch, warnings)`` from an attitude or an IMU topic.
+
+    ``attitude_topic`` and ``imu_topic`` both, or ``model`` (``--calibration``) with an
+    ``attitude_topic``, are refused: one would be ignored. Neither: the bag's attitude
+    topic, else its IMU topic.
+    """
+    if attitude_topic is not None and imu_topic is not None:
+        raise InputError('give --attitude TOPIC or --imu TOPIC, not both: the attitude comes '
+                         'from one of them')
+    if attitude_topic is not None and model is not None:
+        raise InputError('--calibration corrects the accelerometer of --imu; --attitude '
+                         'gives a finished roll/pitch it would not touch: leave one out')
     if attitude_topic is not None or imu_topic is None:
         try:
             att = read_attitude(bag, attitude_topic)

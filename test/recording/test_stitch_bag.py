@@ -123,3 +123,22 @@ def test_an_attitude_topic_with_impossible_samples(tmp_path, capsys):
     with BagReader(bad) as bag:
         with pytest.raises(InputError, match='no usable roll/pitch: all 2 samples'):
             read_attitude(bag, '/attitude')
+
+
+@pytest.mark.parametrize('extra, words', [
+    (['--attitude', '/attitude', '--imu', '/imu/data_raw'], 'not both'),
+    (['--attitude', '/attitude', '--calibration', 'CAL'], '--calibration corrects'),
+])
+def test_an_attitude_source_that_would_be_ignored_is_refused(recording, tmp_path, capsys,
+                                                             extra, words):
+    """--imu beside --attitude (or --calibration with --attitude) was silently ignored."""
+    root, bag, _ = recording
+    cal = tmp_path / 'cal.yaml'
+    cal.write_text('model: diagonal\nscale: [1, 1, 1]\nbias: [0, 0, 0]\n')
+    extra = [str(cal) if e == 'CAL' else e for e in extra]
+    out = tmp_path / 'frames'
+    assert main(['stitch', str(bag), '--rig', str(root / 'rig.yaml'), '--images', *TOPICS,
+                 *extra, '-o', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and words in err, err
+    assert not out.exists()
