@@ -291,6 +291,8 @@ class Calibrator:
             raise CalibrationError(f'this position is already captured as position '
                                    f'{existing.index}; turn the sensor to a new orientation')
         stats = seg.stats()
+        if stats is None:   # a still segment of min_still_s holds blocks: not reached
+            raise CalibrationError('no still samples yet; hold the sensor still and call again')
         problem = _no_gravity(stats.accel_mean)
         if problem:
             raise CalibrationError(f'{problem}: not captured')

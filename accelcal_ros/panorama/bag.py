@@ -63,7 +63,8 @@ class FrameSink:
                                  '(a name without an image suffix)')
             if os.path.exists(self.path) and os.listdir(self.path):
                 raise InputError(f'{self.path} exists and is not empty; choose a new folder')
-            missing, folder = [], os.path.abspath(self.path)
+            missing: List[str] = []
+            folder = os.path.abspath(self.path)
             while not os.path.isdir(folder):   # the folders this run makes, outermost first
                 missing.insert(0, folder)
                 folder = os.path.dirname(folder)

@@ -124,7 +124,8 @@ def _publish_export(capture: str, export: str) -> List[str]:
     from accelcal_ros.errors import InputError
 
     target = os.path.abspath(export)
-    parents, parent = [], os.path.dirname(target)
+    parents: List[str] = []
+    parent = os.path.dirname(target)
     while not os.path.isdir(parent):
         parents.insert(0, parent)
         parent = os.path.dirname(parent)
