@@ -214,6 +214,34 @@ def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLi
                              'input: choose an output path outside it')
 
 
+def missing_folders(path: PathLike) -> List[str]:
+    """
+    Return the folders of ``path`` (itself included) that do not exist yet, outermost first.
+
+    What ``os.makedirs(path)`` would make; with :func:`remove_empty_folders` a failed run
+    takes away exactly the folders it made.
+    """
+    missing: List[str] = []
+    folder = os.path.abspath(os.fspath(path))
+    while not os.path.isdir(folder):
+        missing.insert(0, folder)
+        folder = os.path.dirname(folder)
+    return missing
+
+
+def remove_empty_folders(folders: Iterable[str]) -> None:
+    """
+    Remove ``folders`` (outermost first, as :func:`missing_folders`), innermost first.
+
+    Each only if empty: one something else was put in stays, and so do those around it.
+    """
+    for folder in reversed(list(folders)):
+        try:
+            os.rmdir(folder)
+        except OSError:
+            pass
+
+
 def _is_bag_directory(path):
     """Whether a directory is a rosbag2 recording (metadata.yaml or storage files in it)."""
     try:

@@ -304,3 +304,17 @@ def test_the_largest_real_yaml_a_rosbag2_metadata_file_is_read(tmp_path):
     path.write_text(text)
     info = load_yaml_mapping(path)['rosbag2_bagfile_information']
     assert len(info['files']) == 4000 and len(info['topics_with_message_count']) == 1000
+
+
+def test_missing_folders_are_what_makedirs_makes_and_removed_only_if_empty(tmp_path):
+    """The pair a failed run uses to take away the folders it made, and nothing else."""
+    from accelcal_ros.fileio import missing_folders, remove_empty_folders
+
+    path = tmp_path / 'a' / 'b' / 'c'
+    made = missing_folders(path)
+    assert made == [str(tmp_path / 'a'), str(tmp_path / 'a' / 'b'), str(path)]
+    assert missing_folders(tmp_path) == []
+    os.makedirs(path)
+    (tmp_path / 'a' / 'b' / 'keep.txt').write_text('x')
+    remove_empty_folders(made)
+    assert not path.exists() and (tmp_path / 'a' / 'b' / 'keep.txt').exists()

@@ -21,6 +21,7 @@ import os
 from typing import Any, Callable, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.errors import InputError
+from accelcal_ros.fileio import missing_folders, remove_empty_folders
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagMessage, BagReader
 from accelcal_ros.recording.streams import message_time_s
@@ -63,13 +64,8 @@ class FrameSink:
                                  '(a name without an image suffix)')
             if os.path.exists(self.path) and os.listdir(self.path):
                 raise InputError(f'{self.path} exists and is not empty; choose a new folder')
-            missing: List[str] = []
-            folder = os.path.abspath(self.path)
-            while not os.path.isdir(folder):   # the folders this run makes, outermost first
-                missing.insert(0, folder)
-                folder = os.path.dirname(folder)
+            self._made = missing_folders(self.path)
             os.makedirs(self.path, exist_ok=True)
-            self._made = missing
         else:
             parent = os.path.dirname(os.path.abspath(self.path))
             self._tmp = os.path.join(parent, f'.{os.path.basename(self.path)}.partial-'
@@ -115,11 +111,7 @@ class FrameSink:
                         os.remove(name)
                     except FileNotFoundError:
                         pass
-                for folder in reversed(self._made):
-                    try:
-                        os.rmdir(folder)
-                    except OSError:   # something else is in it now: it stays
-                        break
+                remove_empty_folders(self._made)
                 self._frames, self._made = [], []
             return
         if self._writer is not None:

@@ -123,12 +123,10 @@ def _publish_export(capture: str, export: str) -> List[str]:
 
     from accelcal_ros.errors import InputError
 
+    from accelcal_ros.fileio import missing_folders
+
     target = os.path.abspath(export)
-    parents: List[str] = []
-    parent = os.path.dirname(target)
-    while not os.path.isdir(parent):
-        parents.insert(0, parent)
-        parent = os.path.dirname(parent)
+    parents = missing_folders(os.path.dirname(target))
     partial = os.path.join(os.path.dirname(target),
                            f'.{os.path.basename(target)}.partial-{os.getpid()}')
     made: List[str] = []
@@ -152,13 +150,11 @@ def _remove_made(parents: List[str], export: Optional[str]) -> None:
     """Remove the ``export`` this run made (whole), then the parents it made if empty."""
     import shutil
 
+    from accelcal_ros.fileio import remove_empty_folders
+
     if export is not None:
         shutil.rmtree(export, ignore_errors=True)
-    for path in reversed(parents):
-        try:
-            os.rmdir(path)
-        except OSError:
-            pass
+    remove_empty_folders(parents)
 
 
 def _calibrate(args: argparse.Namespace) -> int:
