@@ -9,7 +9,7 @@ Offline commands of the panorama feature.
   errors of -2 / +2 deg and for the package's own calibration error).
 """
 import os
-from typing import Any, TYPE_CHECKING, Union
+from typing import Any, Tuple, TYPE_CHECKING, Union
 
 from accelcal_ros.cli_args import angle_deg, finite_float, float_in, int_in
 from accelcal_ros.panorama.params import MAX_PANORAMA_SIDE_PX
@@ -31,6 +31,26 @@ def video_fps(bag: Any, topic: str, t: Any, requested: Any) -> float:
     count = bag.topics()[first].count
     span = (t[-1] - t[0]) if len(t) > 1 else 0.0
     return float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
+
+
+def bag_topics_and_model(args: Any, rig: Any) -> Tuple[list, Any]:
+    """
+    Return a BAG input's ``--images`` topics and its ``--calibration`` model (or None).
+
+    One topic per rig camera, in rig order (``[None]`` picks the bag's only image topic
+    for a one-camera rig); stitch, view and serve over a bag share it.
+    """
+    from accelcal_ros.errors import InputError
+
+    topics = args.image_topics or [None]
+    if len(topics) != len(rig):
+        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras '
+                         f'({", ".join(rig.names)}); give one topic per camera, in rig order')
+    if not args.calibration:
+        return topics, None
+    from accelcal_ros.sensor.calibration_file import load_sensor_model
+
+    return topics, load_sensor_model(args.calibration)
 
 
 def add_rig_attitude_arguments(p: Any) -> None:
@@ -231,15 +251,7 @@ def _stitch_bag(args):
     from accelcal_ros.recording.streams import attitude_series
 
     rig = load_rig(args.rig)
-    topics = args.image_topics or [None]
-    if len(topics) != len(rig):
-        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras '
-                         f'({", ".join(rig.names)}); give one topic per camera, in rig order')
-    model = None
-    if args.calibration:
-        from accelcal_ros.sensor.calibration_file import load_sensor_model
-
-        model = load_sensor_model(args.calibration)
+    topics, model = bag_topics_and_model(args, rig)
     geometry = PanoramaGeometry(args.width, args.height, args.fov_h, args.fov_v,
                                 args.projection)
     imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)

@@ -211,20 +211,12 @@ def _view_bag(args: Any) -> int:
     """One levelled view per frame set of a recorded rig (video or PNG folder)."""
     from accelcal_ros.camera.rig import load_rig
     from accelcal_ros.panorama.bag import FrameSink, stitch_recording
-    from accelcal_ros.panorama.cli import video_fps
+    from accelcal_ros.panorama.cli import bag_topics_and_model, video_fps
     from accelcal_ros.recording.cli_support import open_bag, warn
     from accelcal_ros.recording.streams import attitude_series
 
     rig = load_rig(args.rig)
-    topics = args.image_topics or [None]
-    if len(topics) != len(rig):
-        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras '
-                         f'({", ".join(rig.names)}); give one topic per camera, in rig order')
-    model = None
-    if args.calibration:
-        from accelcal_ros.sensor.calibration_file import load_sensor_model
-
-        model = load_sensor_model(args.calibration)
+    topics, model = bag_topics_and_model(args, rig)
     path = ViewPath.load(args.view_path) if args.view_path else None
     frames = _ViewFrames(rig, args, path)
     with open_bag(args.images[0], args.stamp) as bag:
@@ -284,7 +276,7 @@ class _NoSink:
 
 def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
     """Return ``(frame sets, fps)`` of the command's images or bag."""
-    from accelcal_ros.panorama.cli import is_bag_input, read_image
+    from accelcal_ros.panorama.cli import bag_topics_and_model, is_bag_input, read_image
 
     if not is_bag_input(args):
         if args.roll is None or args.pitch is None:
@@ -299,14 +291,7 @@ def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
     from accelcal_ros.recording.cli_support import open_bag, warn
     from accelcal_ros.recording.streams import attitude_series
 
-    topics = args.image_topics or [None]
-    if len(topics) != len(rig):
-        raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras')
-    model = None
-    if args.calibration:
-        from accelcal_ros.sensor.calibration_file import load_sensor_model
-
-        model = load_sensor_model(args.calibration)
+    topics, model = bag_topics_and_model(args, rig)
     collect = _Collect(rig, args.max_frames)
     with open_bag(args.images[0], args.stamp) as bag:
         t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)

@@ -121,6 +121,43 @@ def quaternion_from_roll_pitch(roll: float, pitch: float) -> Tuple[float, float,
     return (cp * sr, sp * cr, -sp * sr, cp * cr)
 
 
+class AccelerationHold:
+    """
+    The last steady tilt, held while the force is not gravity alone (one home for both estimators).
+
+    :meth:`estimate` is called for every reading: while ``accelerating`` it returns the
+    held ``(roll, pitch, cov)`` as a flagged :class:`TiltEstimate`, its variances inflated
+    by ``asin(min(1, deviation))^2`` (rad^2; ``deviation = | |f| - 1 |`` in g), for at
+    most ``max_hold_s`` seconds from the first accelerating reading, and only when
+    calibrated (module docstring: "Acceleration"); otherwise None and the caller
+    estimates. :attr:`held` is what the caller stores after a steady reading.
+    """
+
+    __slots__ = ('held', 'start')
+
+    def __init__(self) -> None:
+        self.held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
+        """The last steady ``(roll, pitch, (c00, c01, c11))``, rad and rad^2."""
+        self.start: Optional[float] = None
+        """Stamp (s) of the first reading of the current acceleration (None when steady)."""
+
+    def estimate(self, stamp: float, accelerating: bool, calibrated: bool, max_hold_s: float,
+                 force: Tuple[float, float, float], magnitude_g: float,
+                 deviation_g: float) -> Optional[TiltEstimate]:
+        """Return the held estimate for a reading at ``stamp`` (s), or None (see class)."""
+        if not accelerating:
+            self.start = None
+            return None
+        if self.start is None:
+            self.start = stamp
+        if self.held is None or not calibrated or stamp - self.start > max_hold_s:
+            return None
+        roll, pitch, (c00, c01, c11) = self.held
+        extra = math.asin(min(1.0, deviation_g)) ** 2
+        return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
+                            True, magnitude_g)
+
+
 class TiltEstimator:
     """Calibrated roll/pitch with covariance, smoothing and an acceleration flag."""
 
@@ -146,8 +183,7 @@ class TiltEstimator:
         """Forget the filter state and the held estimate."""
         self._smoothed: Optional[Tuple[float, float, float]] = None
         self._last_t: Optional[float] = None
-        self._held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
-        self._hold_start: Optional[float] = None
+        self._hold = AccelerationHold()
 
     def set_noise(self, noise_std_g: Sequence[float]) -> None:
         """Set the per-axis raw noise standard deviation (g)."""
@@ -265,18 +301,10 @@ class TiltEstimator:
                 and self._last_t is not None and stamp > self._last_t:
             alpha = 1.0 - math.exp(-(stamp - self._last_t) / tau)
         self._last_t = stamp
-        hold_start = self._hold_start
-        if not accelerating:
-            hold_start = None
-        elif hold_start is None:
-            hold_start = stamp
-        self._hold_start = hold_start
-        if hold_start is not None and self._held is not None and self.calibrated \
-                and stamp - hold_start <= self.max_hold_s:
-            roll, pitch, (c00, c01, c11) = self._held
-            extra = math.asin(min(1.0, deviation)) ** 2
-            return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
-                                True, magnitude)
+        held = self._hold.estimate(stamp, accelerating, self.calibrated, self.max_hold_s,
+                                   force, magnitude, deviation)
+        if held is not None:
+            return held
         if self._smoothed is None or alpha >= 1.0:
             sx, sy, sz = force
         else:
@@ -290,7 +318,7 @@ class TiltEstimator:
             c00 += extra
             c11 += extra
         else:
-            self._held = (roll, pitch, (c00, c01, c11))
+            self._hold.held = (roll, pitch, (c00, c01, c11))
         return TiltEstimate(stamp, roll, pitch, force, (c00, c01, c11), accelerating,
                             magnitude)
 

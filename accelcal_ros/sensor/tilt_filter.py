@@ -83,7 +83,7 @@ from accelcal_ros.sensor.gyro_bias import GyroBiasEstimator, horizontal_error
 from accelcal_ros.sensor.lever_arm import check_lever_arm, RotationAcceleration
 from accelcal_ros.sensor.model import SensorModel
 from accelcal_ros.sensor.stillness import StillnessDetector, StillnessThresholds
-from accelcal_ros.sensor.tilt import TiltEstimate, TiltEstimator
+from accelcal_ros.sensor.tilt import AccelerationHold, TiltEstimate, TiltEstimator
 from accelcal_ros.sensor.tilt_settings import (
     AT_REST_AFTER_S, BIAS_INNOVATION_LIMIT_RAD, BIAS_INTEGRAL_TIME_CONSTANT_S, BIAS_MIN_BLOCKS,
     BIAS_RATE_LIMIT_RAD_S, dema_variance_ratio, FilterSettings, G_SCALE_TIME_CONSTANT_S,
@@ -162,8 +162,7 @@ class AttitudeFilter:
         self._fast2: Optional[Tuple[float, float, float]] = None
         self._still: Optional[list] = None
         self._moving_until = -math.inf
-        self._held: Optional[Tuple[float, float, Tuple[float, float, float]]] = None
-        self._hold_start: Optional[float] = None
+        self._hold = AccelerationHold()
         self._up: Optional[Tuple[float, float, float]] = None
         self._up_n = 0
         self._p = 0.0
@@ -389,19 +388,11 @@ class AttitudeFilter:
                       shrink, aided_by_odometry, mode):
         tilt = self.tilt
         settings = self.settings
-        hold_start = self._hold_start
-        if not accelerating:
-            hold_start = None
-        elif hold_start is None:
-            hold_start = stamp
-        self._hold_start = hold_start
-        if hold_start is not None and self._held is not None and tilt.calibrated \
-                and stamp - hold_start <= tilt.max_hold_s:
-            roll, pitch, (c00, c01, c11) = self._held
-            extra = math.asin(min(1.0, deviation)) ** 2
+        held = self._hold.estimate(stamp, accelerating, tilt.calibrated, tilt.max_hold_s,
+                                   force, magnitude, deviation)
+        if held is not None:
             self.mode = mode or MODE_ACCEL
-            return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
-                                True, magnitude)
+            return held
         roll, pitch, (c00, c01, c11) = tilt.angles_with_covariance(out[0], out[1], out[2],
                                                                    shrink)
         good = (roll, pitch, (c00, c01, c11))
@@ -422,7 +413,7 @@ class AttitudeFilter:
         if accelerating:
             extra = max(extra, math.asin(min(1.0, deviation)) ** 2)
         elif tilt.calibrated:
-            self._held = good
+            self._hold.held = good
         self.rejecting = False
         return TiltEstimate(stamp, roll, pitch, force, (c00 + extra, c01, c11 + extra),
                             accelerating, magnitude)
