@@ -35,7 +35,7 @@ import os
 import re
 import stat
 import threading
-from typing import Any, Callable, IO, Iterable, Iterator, List, Optional
+from typing import Any, Callable, Dict, IO, Iterable, Iterator, List, Optional, Set, Tuple
 
 from accelcal_ros.errors import FileFormatError, FileWriteError, InputError, PathLike
 from accelcal_ros.filecheck import file_kind, open_regular_file, SIZE_LIMITS
@@ -212,6 +212,12 @@ def refuse_overwriting_inputs(output: PathLike, inputs: Iterable[Optional[PathLi
             raise InputError(f'{output}: this is inside {given}, a directory the command '
                              'reads (a bag is a directory); writing there would change the '
                              'input: choose an output path outside it')
+        if os.path.isdir(given_real):
+            real_paths, identities = _directory_files(given_real)
+            if out_real in real_paths or out_ident in identities:
+                raise InputError(f'{output}: this is a file of {given}, an input of the '
+                                 'command (through a link); writing it would destroy the '
+                                 'input: choose another output path')
 
 
 def missing_folders(path: PathLike) -> List[str]:
@@ -240,6 +246,51 @@ def remove_empty_folders(folders: Iterable[str]) -> None:
             os.rmdir(folder)
         except OSError:
             pass
+
+
+DIRECTORY_FILES_LISTED = 100000
+"""Files of an input directory (two levels) compared with an output; beyond, no more."""
+_directory_cache: Dict[Tuple[str, int], Tuple[Set[str], Set[Tuple[int, int]]]] = {}
+
+
+def _directory_files(path: str) -> Tuple[Set[str], Set[Tuple[int, int]]]:
+    """
+    Return the resolved paths and ``(device, inode)`` of the files in directory ``path``.
+
+    Its files and those of its sub-folders (a bag's storage, a data set's images, a
+    capture's camera folders), links followed: a bag whose ``.mcap`` is a link to a file
+    elsewhere, or a hard link, is that file. Kept per directory state (its mtime).
+    """
+    try:
+        key = (path, os.stat(path).st_mtime_ns)
+    except OSError:
+        return set(), set()
+    if key in _directory_cache:
+        return _directory_cache[key]
+    real_paths: Set[str] = set()
+    identities: Set[Tuple[int, int]] = set()
+    folders = [(path, 0)]
+    while folders and len(real_paths) < DIRECTORY_FILES_LISTED:
+        folder, depth = folders.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for entry in entries:
+            try:
+                if entry.is_dir():
+                    if depth < 1:
+                        folders.append((entry.path, depth + 1))
+                    continue
+                info = entry.stat()
+            except OSError:
+                continue
+            real_paths.add(os.path.realpath(entry.path))
+            identities.add((info.st_dev, info.st_ino))
+    if len(_directory_cache) > 64:
+        _directory_cache.clear()
+    _directory_cache[key] = (real_paths, identities)
+    return real_paths, identities
 
 
 def _is_bag_directory(path):

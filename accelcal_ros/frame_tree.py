@@ -55,6 +55,12 @@ FRAME_ID_PATTERN = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)
 
 OPTICAL_SUFFIX = '_optical_frame'
 """REP-103: ``<camera>_optical_frame`` is z forward, x right, y down."""
+OFFSET_LIMIT_M = 1.0e4
+"""Largest offset (m, each axis) of a transform this package publishes from a parameter
+or an option (the IMU's mount, a LiDAR's lever arm): 10 km; beyond it a value is a
+mistake (``1e308`` went onto ``/tf_static``), not a rig."""
+ANGLE_LIMIT_DEG = 360.0
+"""Largest roll/pitch/yaw (deg) given as a parameter or an option of a mounting."""
 
 
 def check_frame_id(frame_id: str, what: str = 'frame id') -> str:
@@ -301,9 +307,9 @@ CALIBRATION_FRAMES_PARAMS = (
     ParamSpec('boresight_file', '', 'boresight YAML (R or rpy_deg, LiDAR -> IMU): the LiDAR '
               'frame; empty = no LiDAR'),
     ParamSpec('lidar_lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame',
-              lengths=(3,), unit='m'),
+              lengths=(3,), minimum=-OFFSET_LIMIT_M, maximum=OFFSET_LIMIT_M, unit='m'),
     ParamSpec('imu_mount_xyz_m', [0.0, 0.0, 0.0], 'IMU origin in the base frame',
-              lengths=(3,), unit='m'),
+              lengths=(3,), minimum=-OFFSET_LIMIT_M, maximum=OFFSET_LIMIT_M, unit='m'),
     ParamSpec('imu_mount_rpy_deg', [0.0, 0.0, 0.0], 'IMU axes in the base frame (roll pitch '
               'yaw, REP-103 fixed axes)', lengths=(3,), minimum=-180.0, maximum=180.0,
               unit='deg'),

@@ -188,6 +188,10 @@ def rotation_matrix_from_list(values: ArrayLike, name: str = 'rotation',
     r = arr.reshape(3, 3)
     if not np.all(np.isfinite(r)):
         raise InputError(f'{name}: contains NaN or infinity')
+    if np.abs(r).max() > 1.0 + tolerance:
+        raise InputError(f'{name}: not a rotation matrix (an entry is '
+                         f'{r.flat[np.abs(r).argmax()]:.6g}; those of a rotation are within '
+                         '+-1)')
     if (np.abs(r @ r.T - np.eye(3)).max() > tolerance
             or abs(np.linalg.det(r) - 1.0) > tolerance):
         raise InputError(f'{name}: not a rotation matrix (R R^T != I or det R != 1, '

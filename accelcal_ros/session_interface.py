@@ -47,6 +47,19 @@ OK, WARN, ERROR = 0, 1, 2
 """Levels of diagnostic_msgs/DiagnosticStatus (the byte values)."""
 
 
+def no_samples_reason(topic: str, skipped: int = 0) -> str:
+    """
+    Return the capture refusal of every calibration node with no usable IMU sample yet.
+
+    ``topic`` is the resolved topic (a remapping shows), ``skipped`` the samples dropped
+    since ``start`` for their header stamps. Without it a node said "moving": the user
+    looked for vibration when nothing arrived.
+    """
+    why = (f'{skipped} skipped for their header stamps (0, or not increasing)' if skipped
+           else 'is the driver running, is the topic remapped?')
+    return f'no usable sample on {topic} since start: {why}'
+
+
 def status_period_spec(node: str) -> ParamSpec:
     """Return the ``status_period_s`` parameter every calibration node declares."""
     return ParamSpec('status_period_s', 1.0, f'Period of {node}/status while a session '

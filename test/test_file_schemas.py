@@ -103,6 +103,11 @@ def test_check_mapping_rules():
         check_mapping({'a': 1, 'b': {'data': [True]}}, schema, 'a test file')
     with pytest.raises(InputError, match='b must be a mapping'):
         check_mapping({'a': 1, 'b': [1]}, schema, 'a test file')
+    # a text file read as YAML: one "key" a line; the reason names five, short, and counts
+    lines = {f'user{k}:*:20228:0:99999:7:::' + 'x' * 60: None for k in range(300)}
+    with pytest.raises(InputError) as caught:
+        check_mapping(dict(lines, a=1), schema, 'a test file')
+    assert 'and 295 more' in str(caught.value) and len(str(caught.value)) < 400
 
 
 CSV_READERS = [

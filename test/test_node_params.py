@@ -72,3 +72,31 @@ def test_core_config_defaults_are_the_spec_defaults():
     assert set(CAPTURE_FIELDS) <= set(lidar)
     changed = capture_settings({'auto_capture': False, 'clouds_per_capture': 3})
     assert (changed.auto, changed.clouds_per_capture) == (False, 3)
+
+
+UNBOUNDED = {('attitude', 'yaw_variance'): 'any finite variance says "yaw unknown" (REP-145)'}
+"""Number parameters that may take any finite value, and why."""
+
+
+@pytest.mark.parametrize('node', sorted(NODE_PARAMS))
+def test_every_number_parameter_is_bounded(node):
+    """
+    A number no rig could have is refused with a reason, never used.
+
+    ``calibration_frames`` took ``imu_mount_xyz_m = [1e308, 1e308, 1e308]`` and put it on
+    /tf_static; ``lidar_calibration`` took the same lever arm and prior, ``cloud_assembler``
+    a map origin of 1e308 m; a 9-value rotation of 1e308 overflowed numpy while checked.
+    """
+    import warnings
+
+    for spec in node_specs(node):
+        if not spec.kind.startswith(('double', 'int')) or (node, spec.name) in UNBOUNDED:
+            continue
+        big = 1e308 if spec.kind.startswith('double') else 2 ** 62
+        length = max(spec.lengths or (3,)) or 3
+        for sign in (1, -1):
+            value = [sign * big] * length if spec.kind.endswith('_array') else sign * big
+            with warnings.catch_warnings():
+                warnings.simplefilter('error')
+                _, reason = spec.check(value)
+            assert reason and reason.startswith(spec.name), (spec.name, value)

@@ -240,6 +240,38 @@ def test_apply_into_the_bag_it_reads_is_refused_and_the_bag_survives(tmp_path, c
     assert main(['apply', '--calibration', 'cal.yaml', 'bag', '-o', 'out.csv']) == 0
 
 
+def test_a_bag_whose_storage_is_a_link_keeps_it(tmp_path, capsys, monkeypatch):
+    """
+    `-o` naming the file a bag's storage links to (symbolic or hard link): status 1.
+
+    The check compared the bag directory only: `accelcal calibrate bag -o store.mcap`
+    with `bag/x.mcap -> ../store.mcap` wrote the calibration over the recording, status 0.
+    """
+    from accelcal_ros.cli import main
+    from accelcal_ros.recording.sim_bags import write_imu_bag
+
+    monkeypatch.chdir(tmp_path)
+    write_imu_bag(tmp_path / 'bag', 'mcap', np.arange(40) * 0.01,
+                  np.tile([0.0, 0.1, 9.8], (40, 1)))
+    storage = next(f for f in os.listdir('bag') if f.endswith('.mcap'))
+    os.rename(f'bag/{storage}', 'store.mcap')
+    os.symlink('../store.mcap', f'bag/{storage}')
+    os.mkdir('hard')
+    os.link('store.mcap', f'hard/{storage}')
+    (tmp_path / 'hard' / 'metadata.yaml').write_bytes((tmp_path / 'bag' / 'metadata.yaml')
+                                                      .read_bytes())
+    _calibration('cal.yaml')
+    before = (tmp_path / 'store.mcap').read_bytes()
+    for args in (['attitude', 'bag', '-o', 'store.mcap'],
+                 ['apply', '--calibration', 'cal.yaml', 'hard', '-o', 'store.mcap'],
+                 ['attitude', 'hard', '-o', f'bag/{storage}']):
+        status = main(args)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert status == 1 and len(err) == 1, (args, err)
+        assert 'input of the command' in err[0] or 'a directory the command reads' in err[0], err
+    assert (tmp_path / 'store.mcap').read_bytes() == before
+
+
 def _calibration(path):
     fileio.write_text_atomic(path, textformats.dump_yaml({
         'format': 'accelcal_ros/calibration 1', 'model': 'full',

@@ -40,8 +40,12 @@ as 1e300) publishes nothing: it is skipped, counted per reason in ``/diagnostics
 (``attitude: tilt``, once a second, with samples in and out) and logged at most every
 10 s. Every dropped message goes through one
 :class:`~accelcal_ros.rosutil.drops.DropCounter` (status ``attitude: dropped messages``;
-kinds ``imu_nan``, ``imu_zero``, ``imu_out_of_range``, ``gyro_nan``, ``gyro_saturated``,
-``gyro_frame``, ``odometry``; docs/attitude.md). Per sample the callback only assigns
+kinds ``imu_nan``, ``imu_zero``, ``imu_out_of_range``, ``imu_unstamped``,
+``imu_out_of_order``, ``imu_time_jump``, ``gyro_nan``, ``gyro_saturated``, ``gyro_frame``,
+``odometry``; docs/attitude.md). Header stamps
+(:class:`~accelcal_ros.rosutil.stamps.StampOrder`): a sample stamped 0 or not after the
+previous one is skipped and counted; stamps jumping back by a second or more (a bag played
+again) restart the estimate from that sample. Per sample the callback only assigns
 plain floats into pre-built messages.
 Core: :class:`~accelcal_ros.sensor.tilt.TiltEstimator`.
 """
@@ -54,6 +58,7 @@ from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
+from accelcal_ros.rosutil.stamps import JUMPED_BACK, StampOrder, USE
 from accelcal_ros.sensor.calibration_file import load_calibration
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.model import SensorModel
@@ -105,6 +110,7 @@ class AttitudeNode(Node):
         self._pending = {}
         self._rate_dt = None
         self._last_stamp = None
+        self._stamp_order = StampOrder()
         self._noise_rate = None
         self._fixed_noise = bool(values['noise_std_g'])
         self._received = 0
@@ -273,6 +279,9 @@ class AttitudeNode(Node):
         header = msg.header
         self._accel_frame = header.frame_id
         stamp = header.stamp.sec + header.stamp.nanosec * 1e-9
+        order = self._stamp_order.check(stamp)
+        if order is not USE and not self._out_of_order(order):
+            return
         self._update_noise(stamp)
         g = STANDARD_GRAVITY_M_S2
         estimator = self.estimator
@@ -372,6 +381,16 @@ class AttitudeNode(Node):
                             'the last good rate, a longer one falls back to the accelerometer',
                             rejections.get(key, 0) - seen.get(key, 0))
 
+    def _out_of_order(self, order):
+        """Count a stamp out of order; return True (use it) after a jump back, restarted."""
+        self.drops.drop('imu_' + order, self._stamp_order.reason(
+            order, 'imu/data_raw', 'the estimate restarts from this sample'))
+        if order != JUMPED_BACK:
+            return False
+        self.filter.reset()
+        self.legacy.reset()
+        return True
+
     def _skip(self, reason):
         """Count an impossible sample and say so, at most every 10 s per reason."""
         self.drops.drop(SKIP_KINDS.get(reason, 'imu_out_of_range'),
@@ -403,6 +422,10 @@ class AttitudeNode(Node):
         elif skipped:
             status.level = DiagnosticStatus.WARN
             status.message = f'{skipped} impossible samples skipped'
+        elif drops.count('imu_unstamped') or drops.count('imu_out_of_order'):
+            status.level = DiagnosticStatus.WARN
+            status.message = (f'{drops.count("imu_unstamped") + drops.count("imu_out_of_order")}'
+                              ' samples skipped: header stamp 0 or not after the previous')
         elif self._gyro_frame_reason:
             status.level, status.message = DiagnosticStatus.WARN, self._gyro_frame_reason
         elif problems:
@@ -418,6 +441,9 @@ class AttitudeNode(Node):
                   'skipped_nan': str(drops.count('imu_nan')),
                   'skipped_zero': str(drops.count('imu_zero')),
                   'skipped_out_of_range': str(drops.count('imu_out_of_range')),
+                  'skipped_stamp': str(drops.count('imu_unstamped')
+                                       + drops.count('imu_out_of_order')),
+                  'time_jumps_back': str(drops.count('imu_time_jump')),
                   'calibrated': str(self.estimator.calibrated).lower(),
                   'calibration_source': self._calibration_source,
                   'mode': 'fixed low-pass (time_constant_s), accelerometer only'

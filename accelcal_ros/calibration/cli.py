@@ -208,6 +208,12 @@ def _apply_to_bag(args, model):
                              'rosbag2)')
         out_topic = args.corrected_topic or topic
         topics = bag.topics()
+        if out_topic != topic and out_topic in topics:
+            raise InputError(f'--corrected-topic {out_topic}: {args.recording} already has '
+                             f'that topic ({topics[out_topic].msgtype}, '
+                             f'{topics[out_topic].count} messages); the corrected {topic} '
+                             'would be mixed into it: give a new name, or leave the option '
+                             'out to replace the input topic')
         corrected = skipped = 0
         with BagWriter(args.output, fmt) as writer:
             for name in sorted(topics):

@@ -21,8 +21,12 @@ next session. ``status_period_s`` takes effect at once.
 
 Samples that cannot be used (NaN/infinite, or saturated: beyond ``saturation_g``) are
 counted in one :class:`~accelcal_ros.rosutil.drops.DropCounter` (``/diagnostics`` status
-``calibration: dropped messages``, kinds ``imu_nan`` and ``imu_saturated``) and logged at
-most every 10 s; samples outside a session are not read (not a drop).
+``calibration: dropped messages``, kinds ``imu_nan`` and ``imu_saturated``; a header
+stamp of 0 or not after the previous one, ``imu_unstamped`` and ``imu_out_of_order``,
+skipped; stamps jumping back by 1 s or more, ``imu_time_jump``, counted and used: the dwell
+ends there) and logged at most every 10 s; samples outside a session are not read (not a
+drop). A capture with no usable sample since ``calibration/start`` says so and names the
+topic.
 
 ``finish`` applies the new calibration to the running attitude node through its standard
 ``<attitude_node>/set_parameters`` service (asynchronously: the executor never blocks).
@@ -31,15 +35,16 @@ import os
 
 from accelcal_ros.calibration.params import CALIBRATION_PARAMS, calibrator_config
 from accelcal_ros.calibration.session import Calibrator
-from accelcal_ros.errors import AccelcalError, FileWriteError
+from accelcal_ros.errors import AccelcalError, CalibrationError, FileWriteError
 from accelcal_ros.rosutil.calibration_interface import CalibrationInterface
 from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
+from accelcal_ros.rosutil.stamps import JUMPED_BACK, StampOrder, USE
 from accelcal_ros.sensor.calibration_file import save_calibration
 from accelcal_ros.sensor.units import STANDARD_GRAVITY_M_S2
-from accelcal_ros.session_interface import OK, SessionProgress, WARN
+from accelcal_ros.session_interface import no_samples_reason, OK, SessionProgress, WARN
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -61,7 +66,10 @@ class CalibrationNode(Node):
         self._apply_clients = {}
         self.drops = DropCounter(self)
         self._rejected_seen = (0, 0)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_subscription_qos())
+        self._stamp_order = StampOrder()
+        self._session_samples = self._skips_at_start = 0
+        self._imu_sub = self.create_subscription(Imu, 'imu/data_raw', self._on_imu,
+                                                 imu_subscription_qos())
         # markers first: the interface publishes the first status (and with it markers)
         marker_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -85,10 +93,17 @@ class CalibrationNode(Node):
             return
         a = msg.linear_acceleration
         stamp = msg.header.stamp
+        t = stamp.sec + stamp.nanosec * 1e-9
+        order = self._stamp_order.check(t)
+        if order is not USE:
+            self.drops.drop('imu_' + order, self._stamp_order.reason(
+                order, 'imu/data_raw', 'the current still dwell ends there'))
+            if order != JUMPED_BACK:
+                return
+        self._session_samples += 1
         self._frame_id = msg.header.frame_id or self._frame_id
         g = STANDARD_GRAVITY_M_S2
-        events = self.calibrator.add_sample(stamp.sec + stamp.nanosec * 1e-9,
-                                            (a.x / g, a.y / g, a.z / g))
+        events = self.calibrator.add_sample(t, (a.x / g, a.y / g, a.z / g))
         detector = self.calibrator.detector
         rejected = (detector.rejected_nan, detector.rejected_saturated)
         if rejected != self._rejected_seen:
@@ -115,6 +130,8 @@ class CalibrationNode(Node):
         """Open a session with the current parameters."""
         self.calibrator.config = calibrator_config(self.params.values)
         self.calibrator.start()
+        self._session_samples = 0
+        self._skips_at_start = self._stamp_order.skipped
         return (f'calibration started ({self.calibrator.config.model} model): hold the '
                 f'sensor still in at least {self.calibrator.needed} well spread '
                 'orientations (auto capture '
@@ -122,6 +139,9 @@ class CalibrationNode(Node):
 
     def capture(self):
         """Capture the current still dwell (CalibrationError with the reason)."""
+        if self.calibrator.active and not self._session_samples:
+            skipped = self._stamp_order.skipped - self._skips_at_start
+            raise CalibrationError(no_samples_reason(self._imu_sub.topic_name, skipped))
         cap = self.calibrator.capture_now()
         return (f'captured position {cap.index} ({cap.samples} samples so far; it keeps '
                 'averaging until the sensor moves)')

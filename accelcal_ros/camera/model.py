@@ -94,9 +94,9 @@ def _camera_matrix(k: Any, where: str) -> np.ndarray:
             k = k / k[2, 2]
     if (not k[0, 0] > 0 or not k[1, 1] > 0 or k[1, 0] != 0.0
             or np.abs(k[2] - [0.0, 0.0, 1.0]).max() > 1e-9):
+        zero = ' (an all-zero K: the camera is not calibrated)' if not k.any() else ''
         raise InputError(f'{where}K must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with focal '
-                         f'lengths fx, fy > 0, got {k.reshape(-1).tolist()} (an all-zero K: '
-                         'the camera is not calibrated)')
+                         f'lengths fx, fy > 0, got {k.reshape(-1).tolist()}{zero}')
     limit = MAX_FOCAL_PX
     if not (np.all(np.isfinite(k)) and MIN_FOCAL_PX <= k[0, 0] <= limit
             and MIN_FOCAL_PX <= k[1, 1] <= limit
@@ -107,6 +107,20 @@ def _camera_matrix(k: Any, where: str) -> np.ndarray:
                          f'principal point within +-{2 * MAX_SIDE_PX} px (broken file or wrong '
                          'units)')
     return k
+
+
+def check_principal_point(k: np.ndarray, width: int, height: int, where: str) -> None:
+    """
+    Refuse a principal point outside a known image (``width``, ``height`` > 0; pixels).
+
+    A calibrated lens centres within its image; ``cx = 5000`` for a 640 px image was
+    accepted (P2P ranges of 62.9 and 362.7 m for a true 6.1 m, status 0).
+    """
+    cx, cy = float(k[0, 2]), float(k[1, 2])
+    if width > 0 and height > 0 and not (0.0 <= cx <= width and 0.0 <= cy <= height):
+        raise InputError(f'{where}K: the principal point ({cx:g}, {cy:g}) px lies outside the '
+                         f'{width}x{height} image (a calibrated lens centres within it: '
+                         "another camera's K, or a broken file?)")
 
 
 def _side(value: Any, key: str, where: str, allow_zero: bool) -> int:
@@ -140,6 +154,7 @@ class CameraModel:
         _side(self.width, 'width', '', True)
         _side(self.height, 'height', '', True)
         k = _camera_matrix(self.K, '')
+        check_principal_point(k, int(self.width), int(self.height), '')
         d, model = _coefficients(self.D, self.distortion_model, '')
         k.setflags(write=False)
         d.setflags(write=False)
@@ -176,8 +191,9 @@ class CameraModel:
         where = 'camera_info '
         kk = _camera_matrix(k, where)
         dd, model = _coefficients(d, distortion_model, where)
-        return cls(_side(width, 'width', where, True), _side(height, 'height', where, True),
-                   kk, dd, model)
+        width, height = _side(width, 'width', where, True), _side(height, 'height', where, True)
+        check_principal_point(kk, width, height, where)
+        return cls(width, height, kk, dd, model)
 
     # -- properties -----------------------------------------------------------------
     @property
@@ -331,6 +347,7 @@ def camera_model_from_mapping(entry: Mapping, where: str = 'camera') -> CameraMo
     width = _side(entry[keys[0]], keys[0], prefix, False)
     height = _side(entry[keys[1]], keys[1], prefix, False)
     k = _camera_matrix(_numbers(entry[keys[2]], prefix, keys[2]), prefix)
+    check_principal_point(k, width, height, prefix)
     d_entry = entry.get(keys[3])
     d = np.zeros(0) if d_entry is None else _numbers(d_entry, prefix, keys[3])
     model = entry.get('distortion_model', PLUMB_BOB)

@@ -39,7 +39,7 @@ from accelcal_ros.rosutil.pointcloud2 import pointcloud2_to_array
 from accelcal_ros.rosutil.runner import run
 from accelcal_ros.rosutil.stamps import stamp_to_seconds
 from accelcal_ros.rosutil.static_tf import StaticBroadcaster
-from accelcal_ros.session_interface import OK, SessionProgress, WARN
+from accelcal_ros.session_interface import no_samples_reason, OK, SessionProgress, WARN
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -69,7 +69,8 @@ class LidarCalibrationNode(Node):
         imu_qos = QoSProfile(depth=self.params['imu_queue_depth'],
                              reliability=ReliabilityPolicy.BEST_EFFORT,
                              history=HistoryPolicy.KEEP_LAST)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
+        self._session_samples = 0
+        self._imu_sub = self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
         reliability = (ReliabilityPolicy.RELIABLE if self.params['points_reliable']
                        else ReliabilityPolicy.BEST_EFFORT)
         points_qos = QoSProfile(depth=self.params['queue_depth'], reliability=reliability,
@@ -118,6 +119,7 @@ class LidarCalibrationNode(Node):
             still = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel, gyro)
             new = self._new_positions()
             backwards = self._capture.out_of_order - before
+            self._session_samples += not backwards
         if backwards:
             self._drops.drop('imu_samples_out_of_order', 'IMU stamp not after the previous '
                              'one: sample ignored (two publishers on imu/data_raw, or a clock '
@@ -171,6 +173,7 @@ class LidarCalibrationNode(Node):
         with self._lock:
             self._apply_settings()
             self._capture = StaticCapture(self._settings, self._model)
+            self._session_samples = 0
             self._n_logged = 0
             self._was_still = False
         return ('boresight calibration started: rest the rig in '
@@ -180,6 +183,9 @@ class LidarCalibrationNode(Node):
     def capture(self):
         """Capture the current still period (CalibrationError with the reason)."""
         with self._lock:
+            if not self._session_samples:
+                raise CalibrationError(no_samples_reason(self._imu_sub.topic_name,
+                                                         self._capture.out_of_order))
             pos, reason = self._capture.capture_now()
             self._new_positions()
         if pos is None:

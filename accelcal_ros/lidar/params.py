@@ -7,7 +7,8 @@ The still-capture defaults are those of :class:`~accelcal_ros.lidar.capture.Capt
 """
 from typing import Any, Dict, Optional
 
-from accelcal_ros.frame_tree import frame_id_reason, frame_name_params
+from accelcal_ros.frame_tree import (ANGLE_LIMIT_DEG, frame_id_reason, frame_name_params,
+                                     OFFSET_LIMIT_M)
 from accelcal_ros.lidar.capture import CaptureSettings
 from accelcal_ros.outputs import default_output, output_path_problem, output_validator
 from accelcal_ros.paramspec import ParamSpec
@@ -27,6 +28,11 @@ CAPTURE_FIELDS = {
 
 def _cloud_output_ok(value):
     return output_path_problem(value, ('.ply', '.pcd', '.laz', '.las')) if value else None
+
+
+MAP_COORDINATE_LIMIT_M = 1.0e8
+"""Largest map coordinate (m) of ``map_origin``: every projected CRS of the Earth lies
+within +-4e7 m (Web Mercator's extent), heights far inside."""
 
 
 def _frame_or_empty_ok(value):
@@ -59,7 +65,8 @@ LIDAR_CALIBRATION_PARAMS = (
               'finish; ~ is expanded', validator=output_validator(('.yaml', '.yml'))),
     ParamSpec('prior_rpy_deg', [], 'nominal mounting LiDAR -> IMU (roll pitch yaw, deg, '
               'REP-103 fixed axes); empty = find the floor without a prior',
-              kind='double_array', validator=_rpy_ok, unit='deg'),
+              kind='double_array', validator=_rpy_ok, minimum=-ANGLE_LIMIT_DEG,
+              maximum=ANGLE_LIMIT_DEG, unit='deg'),
     ParamSpec('calibration_file', '', 'accelerometer calibration applied to the IMU '
               '(empty = none)', read_only=True),
     ParamSpec('auto_capture', _CAPTURE.auto, 'capture a position each time the rig rests'),
@@ -93,7 +100,8 @@ LIDAR_CALIBRATION_PARAMS = (
               choices=('noise', 'equal')),
     status_period_spec('lidar_calibration'),
     ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame (published with '
-              'the boresight on /tf_static at finish)', lengths=(3,), unit='m'),
+              'the boresight on /tf_static at finish)', lengths=(3,), minimum=-OFFSET_LIMIT_M,
+              maximum=OFFSET_LIMIT_M, unit='m'),
     *frame_name_params('imu_frame', 'lidar_frame'),
 )
 """Every parameter of the ``lidar_calibration`` node (see config/lidar_calibration.yaml)."""
@@ -103,9 +111,9 @@ CLOUD_ASSEMBLER_PARAMS = (
               'use boresight_rpy_deg', read_only=True),
     ParamSpec('boresight_rpy_deg', [0.0, 0.0, 0.0], 'boresight LiDAR -> IMU (roll pitch '
               'yaw, deg, REP-103 fixed axes) when no file is given', lengths=(3,),
-              read_only=True, unit='deg'),
+              minimum=-ANGLE_LIMIT_DEG, maximum=ANGLE_LIMIT_DEG, read_only=True, unit='deg'),
     ParamSpec('lever_arm_m', [0.0, 0.0, 0.0], 'LiDAR origin in the IMU frame', lengths=(3,),
-              read_only=True, unit='m'),
+              minimum=-OFFSET_LIMIT_M, maximum=OFFSET_LIMIT_M, read_only=True, unit='m'),
     ParamSpec('time_field', '', 'per-point time field (empty = time, t or timestamp)',
               read_only=True),
     ParamSpec('frame_id', '', 'frame of the output (empty = the odometry header frame)',
@@ -119,7 +127,8 @@ CLOUD_ASSEMBLER_PARAMS = (
               read_only=True, validator=_crs_ok),
     ParamSpec('map_origin', [], 'CRS coordinates (easting northing height) of the map frame '
               'origin; empty = the first pose rounded to 1 km (logged)', kind='double_array',
-              validator=_origin_ok, read_only=True, unit='m'),
+              validator=_origin_ok, minimum=-MAP_COORDINATE_LIMIT_M,
+              maximum=MAP_COORDINATE_LIMIT_M, read_only=True, unit='m'),
     ParamSpec('save_voxel_m', 0.0, 'thin the saved cloud to one point per voxel of this size '
               '(0 = every point)', minimum=0.0, maximum=100.0, unit='m'),
     ParamSpec('max_wait_s', 3.0, 'how long a scan waits for odometry to cover it, counted '

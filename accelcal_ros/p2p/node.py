@@ -140,7 +140,7 @@ class P2PNode(Node):
             reason = self.pipeline.set_camera_info(msg.k, msg.d, msg.distortion_model,
                                                    msg.width, msg.height)
         if reason:
-            self.drops.drop('camera_info', f'camera_info rejected: {reason}')
+            self.drops.drop('camera_info', reason)
             self._note(reason, log=False)
         else:
             self.get_logger().info(f'camera_info: {msg.width}x{msg.height}, fx {msg.k[0]:.1f}, '

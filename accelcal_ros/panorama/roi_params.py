@@ -2,7 +2,7 @@
 from accelcal_ros.errors import InputError
 from accelcal_ros.panorama.params import STITCHER_PARAMS
 from accelcal_ros.panorama.view_pose import MAX_VIEW_SIDE_PX, MIN_VIEW_SIDE_PX
-from accelcal_ros.panorama.view_set import parse_view_entry
+from accelcal_ros.panorama.view_set import parse_view_entry, repeated_names_reason
 from accelcal_ros.paramspec import ParamSpec
 
 MAX_VIEWS_LIMIT = 64
@@ -16,9 +16,7 @@ def _entries_reason(values):
             names.append(parse_view_entry(entry)[0])
         except InputError as exc:
             return str(exc)
-    if len(set(names)) != len(names):
-        return f'a view name is listed twice: {names}'
-    return None
+    return repeated_names_reason(names)
 
 
 ROI_PARAMS = [

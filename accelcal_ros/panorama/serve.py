@@ -34,19 +34,18 @@ reverse proxy (nginx, Caddy) that terminates HTTPS, forwards WebSocket upgrades 
 """
 import asyncio
 import hmac
-import ipaddress
 import json
 import math
-import os
-import secrets
-import socket
 import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
-from urllib.parse import quote, urlsplit
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.jpeg import encode_jpeg
+from accelcal_ros.panorama.serve_guard import (_hostname, is_loopback, listen_error,
+                                               make_token, page_url, quiet_bad_requests,
+                                               QuietLoopErrors, raise_file_limit,
+                                               request_problem, set_security_headers)
 from accelcal_ros.panorama.view_pose import ViewPose
 from accelcal_ros.panorama.view_set import NoSuchView, ViewSet
 import numpy as np
@@ -59,6 +58,20 @@ MIN_DRAW_RATE_HZ = 25.0
 """A dragged tab may be drawn this often even when frames come slower (drag latency)."""
 LIVE_RATE_BOUNDS = (5.0, 60.0)
 """Live, a tab is drawn at most at the frame sets' rate, kept within these (Hz)."""
+MAX_CONTROL_BYTES = 4096
+"""Longest control message (a JSON object of a few numbers is under 100 bytes)."""
+MAX_CONTROL_RATE = (400, 1.0)
+"""At most this many control messages per this many seconds from one tab (a drag sends
+one per animation frame, the acks one per frame): a tab flooding its socket (176 000
+acks/s cut another tab from 24 to 3 frames/s) is closed with code 1008 and the reason."""
+SEND_TIMEOUT_S = 10.0
+"""A frame the tab has not taken in this long (it acks without reading, its socket's
+buffers full: 4 MB) drops its connection (no close frame would get through either): its
+view slot is freed; it held it for good."""
+SHUTDOWN_S = 1.0
+"""How long a stopping server waits for its tabs' handlers after closing them (1001)."""
+__all__ = ['is_loopback', 'make_token', 'next_draw_due', 'page_url', 'serve_forever',
+           'ViewServer']
 FrameSet = Tuple[List[np.ndarray], float, float, float]
 """``(images in rig order, roll, pitch, stamp_s)`` (radians, seconds)."""
 
@@ -77,92 +90,6 @@ def next_draw_due(due_s: float, start_s: float, period_s: float) -> float:
     rate stays at most one per period and two drawings are at least half a period apart.
     """
     return max(due_s + period_s, start_s + 0.5 * period_s)
-
-
-def is_loopback(host: str) -> bool:
-    """Return True for 127.0.0.0/8, ::1 and ``localhost``."""
-    if host == 'localhost':
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def _hostname(netloc: str) -> str:
-    """Return the host of ``host[:port]`` (brackets of an IPv6 address dropped)."""
-    try:
-        return (urlsplit(f'//{netloc}').hostname or '').lower()
-    except ValueError:
-        return ''
-
-
-def request_problem(headers: Any, host: str, token_required: bool) -> Optional[str]:
-    """
-    Return why a request must be refused (403) before its token is looked at, or None.
-
-    ``headers``: the request's headers; ``host``: its ``Host``. The site the browser
-    shows is ``X-Forwarded-Host`` when a proxy set it (a browser cannot set that header
-    on a WebSocket, nor on a cross-site request without a CORS preflight, which this
-    server never grants), else ``Host``. ``Origin``, which a browser sends on every
-    WebSocket and cross-site request, must name that site: another page's script gets
-    nothing (cross-site WebSocket hijacking). Without a token (``token_required`` False,
-    a loopback server) ``Host`` must also be a loopback name unless a proxy forwarded the
-    request: a DNS-rebinding page reaches 127.0.0.1 under its own host name.
-    """
-    forwarded = headers.get('X-Forwarded-Host', '').split(',')[0].strip()
-    site = (forwarded or host).lower()
-    if not token_required and not forwarded and not is_loopback(_hostname(host)):
-        return (f'403: Host {host!r} is not a loopback name; this server answers only '
-                'http://127.0.0.1 or http://localhost (a guard against DNS rebinding)\n')
-    origin = headers.get('Origin')
-    if origin is not None:
-        try:
-            netloc = urlsplit(origin).netloc.lower()
-        except ValueError:
-            netloc = ''
-        if netloc != site:
-            return (f'403: a request from the page {origin!r} is refused; only this '
-                    f"server's own page ({site}) may talk to it\n")
-    return None
-
-
-def _not_a_client_fault(record: Any) -> bool:
-    """Drop aiohttp's traceback of a malformed request (answered 400): a logging filter."""
-    from aiohttp.http_exceptions import HttpProcessingError
-
-    error = record.exc_info[1] if record.exc_info else None
-    return not isinstance(error, HttpProcessingError)
-
-
-def quiet_bad_requests() -> None:
-    """
-    Keep aiohttp from printing a traceback for each malformed request (once per process).
-
-    A 20 kB header line, a 10 kB URL or ``Content-Length: -5`` is answered 400 by aiohttp,
-    which also logs the parser's exception with its traceback on ``aiohttp.server``; that
-    is the client's fault, not the server's, and it says nothing the 400 does not.
-    """
-    import logging
-
-    server_log = logging.getLogger('aiohttp.server')
-    if _not_a_client_fault not in server_log.filters:
-        server_log.addFilter(_not_a_client_fault)
-
-
-def page_url(host: str, port: int, token: Optional[str] = None) -> str:
-    """Return the page's URL on ``host:port`` (an IPv6 address bracketed, the token quoted)."""
-    where = f'[{host}]' if ':' in host else host
-    return f'http://{where}:{port}/' + (f'?token={quote(token, safe="")}' if token else '')
-
-
-def listen_error(host: str, port: int, exc: OSError) -> InputError:
-    """Return the one-line error of a failed bind, naming ``host:port`` and the reason."""
-    if isinstance(exc, socket.gaierror) or not isinstance(exc.errno, int) or exc.errno <= 0:
-        reason = exc.strerror or str(exc)
-    else:
-        reason = os.strerror(exc.errno)
-    return InputError(f'cannot listen on {host}:{port}: {reason}')
 
 
 class ViewServer:
@@ -193,6 +120,8 @@ class ViewServer:
         self.skipped_frames = 0
         """Frame sets of the recording skipped by the playback (it was too late for them)."""
         self._next_id = 0
+        self._sockets: Dict[Any, Any] = {}
+        """Open tabs: WebSocketResponse -> its transport (aborted if it will not close)."""
         self._changed: Optional[asyncio.Condition] = None
         self._playback: Optional['asyncio.Task[None]'] = None
         self._runner: Any = None
@@ -258,8 +187,31 @@ class ViewServer:
         app.router.add_get('/ws', self._socket)
         app.router.add_get('/status', self._status)
         app.on_startup.append(self._start_playback)
+        app.on_response_prepare.append(self._headers)
+        app.on_shutdown.append(self._close_tabs)
         app.on_cleanup.append(self._stop_playback)
         return app
+
+    async def _headers(self, request: Any, response: Any) -> None:
+        set_security_headers(response.headers)
+
+    async def _close_tabs(self, app: Any) -> None:
+        """Close every tab with 1001 (going away): they were cut (1006) 14 s after Ctrl-C."""
+        from aiohttp import WSCloseCode
+
+        tabs = dict(self._sockets)
+        closing = {asyncio.ensure_future(ws.close(code=WSCloseCode.GOING_AWAY,
+                                                  message=b'server shutting down')): ws
+                   for ws in tabs}
+        if closing:
+            done, pending = await asyncio.wait(closing, timeout=SHUTDOWN_S)
+            for task in pending:   # a tab that does not read cannot take the close frame
+                task.cancel()
+                transport = tabs[closing[task]]
+                if transport is not None:
+                    transport.abort()
+            for task in done:
+                task.exception() if not task.cancelled() else None
 
     def _authorised(self, request: Any) -> bool:
         if self.token is None:
@@ -296,6 +248,11 @@ class ViewServer:
     async def _status(self, request: Any) -> Any:
         from aiohttp import web
 
+        if self.token is None and ('X-Forwarded-Host' in request.headers
+                                   or not is_loopback(_hostname(request.host))):
+            # a DNS-rebinding page may send X-Forwarded-Host itself on a same-origin GET
+            return web.Response(status=403, text='403: without a token the status is '
+                                'answered on a loopback address only\n')
         return web.json_response({'views': self.views.names(), 'refused': self.refused,
                                   'max_views': self.views.max_views,
                                   'frame': self.frame_number, 'served': self.served_frames,
@@ -368,25 +325,47 @@ class ViewServer:
         # frame deflates by 18 % (the scene) to 0.1 % (noise) for 1.4 to 22 ms of CPU
         # each, and a compressed send cut short by a closing tab left aiohttp's
         # "Task exception was never retrieved" traceback on the server's stderr
-        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=4096, compress=False)
-        await ws.prepare(request)
+        # messages up to 16x the control limit are read and answered with the reason
+        # (aiohttp closed a 4.2 kB one with 1009 and no reason, the view gone)
+        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=16 * MAX_CONTROL_BYTES,
+                                   compress=False)
+        await ws.prepare(request)   # a tab gone mid-handshake: quiet_bad_requests
         self._next_id += 1
         name = f'tab{self._next_id}'
         try:
             self.views.add(name, ViewPose.from_degrees(*DEFAULT_POSE_DEG))
         except InputError as exc:
             self.refused += 1
-            await ws.send_str(json.dumps({'refused': str(exc)}))
-            await ws.close(code=1013, message=b'too many views')
+            try:
+                await ws.send_str(json.dumps({'refused': str(exc)}))
+                await ws.close(code=1013, message=b'too many views')
+            except ConnectionError:
+                pass
             return ws
+        self._sockets[ws] = request.transport
         state: Dict[str, Any] = {'dirty': True, 'acked': True, 'sent': 0, 'due': 0.0}
         sender = asyncio.get_running_loop().create_task(self._send_frames(ws, name, state))
+        window_start, count = time.monotonic(), 0
         try:
             async for msg in ws:
-                if msg.type != WSMsgType.TEXT:
-                    continue
-                await self._on_control(ws, name, state, msg.data)
+                now = time.monotonic()
+                if now - window_start > MAX_CONTROL_RATE[1]:
+                    window_start, count = now, 0
+                count += 1
+                if count > MAX_CONTROL_RATE[0]:
+                    await ws.close(code=1008, message=(
+                        f'more than {MAX_CONTROL_RATE[0]} messages in '
+                        f'{MAX_CONTROL_RATE[1]:g} s').encode())
+                    break
+                if msg.type == WSMsgType.BINARY:
+                    await ws.send_str(json.dumps({'error': 'binary messages are not '
+                                                  'accepted: control messages are JSON text'}))
+                elif msg.type == WSMsgType.TEXT:
+                    await self._on_control(ws, name, state, msg.data)
+        except ConnectionError:   # the tab went while we answered it
+            pass
         finally:
+            self._sockets.pop(ws, None)
             sender.cancel()
             try:
                 await sender
@@ -399,6 +378,10 @@ class ViewServer:
         return ws
 
     async def _on_control(self, ws: Any, name: str, state: Dict[str, Any], text: str) -> None:
+        if len(text) > MAX_CONTROL_BYTES:
+            await ws.send_str(json.dumps({'error': f'a control message is at most '
+                                          f'{MAX_CONTROL_BYTES} bytes, got {len(text)}'}))
+            return
         try:
             data = json.loads(text)
             if not isinstance(data, dict):
@@ -468,9 +451,19 @@ class ViewServer:
             state['sent'] += 1
             info['sent'] = state['sent']
             info['server_time'] = time.time()
-            await ws.send_str(json.dumps(info))
-            await ws.send_bytes(data)
+            try:
+                await asyncio.wait_for(self._send(ws, json.dumps(info), data), SEND_TIMEOUT_S)
+            except asyncio.TimeoutError:   # acks without reading: its slot is freed
+                transport = self._sockets.get(ws)   # no close frame gets through either
+                if transport is not None:
+                    transport.abort()
+                return
             self.served_frames += 1
+
+    @staticmethod
+    async def _send(ws: Any, info: str, data: bytes) -> None:
+        await ws.send_str(info)
+        await ws.send_bytes(data)
 
     # -- running --------------------------------------------------------------------------
     async def _listen(self, host: str, port: int, handle_signals: bool = False) -> None:
@@ -484,7 +477,9 @@ class ViewServer:
         from aiohttp import web
 
         quiet_bad_requests()
-        self._runner = web.AppRunner(self.app(), handle_signals=handle_signals)
+        asyncio.get_running_loop().set_exception_handler(QuietLoopErrors())
+        self._runner = web.AppRunner(self.app(), handle_signals=handle_signals,
+                                     shutdown_timeout=SHUTDOWN_S)
         await self._runner.setup()
         site = web.TCPSite(self._runner, host, port)
         try:
@@ -525,8 +520,8 @@ class ViewServer:
         return self.url
 
     def stop(self) -> None:
-        """Stop a server started by :meth:`start`."""
-        if self._loop is not None and self._thread is not None:
+        """Stop a server started by :meth:`start` (again: nothing to do)."""
+        if self._loop is not None and self._thread is not None and not self._loop.is_closed():
             self._loop.call_soon_threadsafe(self._loop.stop)
             self._thread.join(timeout=10.0)
 
@@ -553,6 +548,7 @@ def serve_forever(server: ViewServer, host: str, port: int,
             if server._runner is not None:
                 await server._runner.cleanup()
 
+    raise_file_limit()
     loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
     main = loop.create_task(run())
@@ -576,8 +572,3 @@ def _close_loop(loop: asyncio.AbstractEventLoop, main: 'asyncio.Task[None]') -> 
     loop.run_until_complete(loop.shutdown_asyncgens())
     loop.close()
     asyncio.set_event_loop(None)
-
-
-def make_token() -> str:
-    """Return a fresh random token (URL-safe, 128 bits)."""
-    return secrets.token_urlsafe(16)

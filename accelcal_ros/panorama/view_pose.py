@@ -23,17 +23,21 @@ MAX_FOV_H_DEG = 170.0
 """Widest horizontal field of view accepted (a pinhole reaches infinity at 180 deg)."""
 MIN_FOV_H_DEG = 0.5
 """Narrowest horizontal field of view accepted (an electronic zoom of ~100x)."""
+MAX_AZIMUTH_TURNS = 10000
+"""Largest azimuth accepted, in turns either way (a head tracker's unwrapped yaw is
+wrapped into [-180, 180) deg); beyond it the number names no direction (``1e308`` deg)."""
 
 
 def finite_number(name: str, value: Any) -> float:
     """
     Return ``value`` as a finite float, or raise :class:`InputError` naming ``name``.
 
-    Booleans are not numbers here (``float(True)`` is 1: a JSON ``true`` would turn a
-    view by a degree); an integer too large for a float is not finite.
+    Booleans and strings are not numbers here (``float(True)`` is 1: a JSON ``true``
+    would turn a view by a degree; a JSON ``"45"`` or ``"1_0"`` was read as 45 and 10);
+    an integer too large for a float is not finite.
     """
-    if isinstance(value, (bool, np.bool_)):
-        raise InputError(f'view {name} must be a number, got {value!r}')
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise InputError(f'view {name} must be a number, got {value!r:.40}')
     try:
         number = float(value)
     except OverflowError:
@@ -65,6 +69,10 @@ class ViewPose:
         az = finite_number('azimuth', self.azimuth_rad)
         el = finite_number('elevation', self.elevation_rad)
         fov = finite_number('fov_h', self.fov_h_rad)
+        if abs(az) > 2.0 * math.pi * MAX_AZIMUTH_TURNS:
+            raise InputError(f'view azimuth must be within +-{MAX_AZIMUTH_TURNS} turns '
+                             f'(+-{360 * MAX_AZIMUTH_TURNS:.0f} deg), got '
+                             f'{math.degrees(az):.6g} deg; keeping the last view')
         if not -math.pi / 2 - 1e-12 <= el <= math.pi / 2 + 1e-12:
             raise InputError(f'view elevation must be within +-90 deg, got '
                              f'{math.degrees(el):.6g} deg')

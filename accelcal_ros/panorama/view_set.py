@@ -62,6 +62,16 @@ def check_view_name(name: Any) -> str:
     return name
 
 
+def repeated_names_reason(names: List[str]) -> Optional[str]:
+    """Return why ``names`` cannot all be views (a name listed twice, named once), or None."""
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if not repeated:
+        return None
+    shown = ', '.join(repeated[:5]) + (f' and {len(repeated) - 5} more' if len(repeated) > 5
+                                       else '')
+    return f'a view name is listed twice: {shown}'
+
+
 def parse_view_entry(entry: str) -> Tuple[str, Optional[ViewPose]]:
     """Return ``(name, pose or None)`` of ``NAME`` or ``NAME:AZ,EL,FOV`` (degrees)."""
     name, sep, rest = str(entry).partition(':')
@@ -263,8 +273,9 @@ class ViewSet:
         """
         parsed = [parse_view_entry(e) for e in entries]
         names = [n for n, _ in parsed]
-        if len(set(names)) != len(names):
-            raise InputError(f'a view name is listed twice: {names}')
+        repeated = repeated_names_reason(names)
+        if repeated:
+            raise InputError(repeated)
         if len(names) > self.max_views:
             raise InputError(f'too many views: {len(names)} listed, at most {self.max_views}')
         with self.lock:

@@ -31,9 +31,9 @@ from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.images import image_msg_to_array
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.runner import run
-from accelcal_ros.rosutil.stamps import stamp_to_seconds
+from accelcal_ros.rosutil.stamps import JUMPED_BACK, stamp_to_seconds, StampOrder, USE
 from accelcal_ros.rosutil.static_tf import StaticBroadcaster
-from accelcal_ros.session_interface import OK, SessionProgress, WARN
+from accelcal_ros.session_interface import no_samples_reason, OK, SessionProgress, WARN
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -69,7 +69,10 @@ class RigCalibrationNode(Node):
         for name in p['cameras']:
             self.create_subscription(Image, f'{name}/image_raw',
                                      lambda msg, cam=name: self._on_image(cam, msg), sensor_qos)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
+        self._session_samples = 0
+        self._stamp_order = StampOrder()
+        self._skips_at_start = 0
+        self._imu_sub = self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
         self.session = CalibrationInterface(
             self, self, 'camera rig calibration', 'rig ' + ' '.join(p['cameras']),
             f'show the {p["board"]} board to the cameras and rest the rig (auto capture) '
@@ -117,11 +120,19 @@ class RigCalibrationNode(Node):
         if not np.all(np.isfinite(accel)):
             self._drops.drop('imu_samples', 'IMU sample with NaN ignored')
             return
+        t = stamp_to_seconds(msg.header.stamp)
         with self._lock:
             if self._capture is None:
                 return
-            name = self._capture.add_imu(stamp_to_seconds(msg.header.stamp), accel)
+            order = self._stamp_order.check(t)
+            name = None
+            if order is USE or order == JUMPED_BACK:
+                name = self._capture.add_imu(t, accel)
+                self._session_samples += 1
             count = len(self._capture.poses)
+        if order is not USE:
+            self._drops.drop('imu_' + order, self._stamp_order.reason(
+                order, 'imu/data_raw', 'the current still pose ends there'))
         if name:
             self.session.event(f'captured {name} ({count} poses)')
 
@@ -146,6 +157,8 @@ class RigCalibrationNode(Node):
                                  'writable directory') from exc
         with self._lock:
             self._capture = capture
+            self._session_samples = 0
+            self._skips_at_start = self._stamp_order.skipped
         return (f'rig calibration started: poses go to {folder}; rest the rig with the '
                 f'{p["board"]} board in view (auto capture '
                 f'{"on" if p["auto_capture"] else "off"})')
@@ -153,6 +166,9 @@ class RigCalibrationNode(Node):
     def capture(self):
         """Capture the current still pose (CalibrationError with the reason)."""
         with self._lock:
+            if not self._session_samples:
+                raise CalibrationError(no_samples_reason(
+                    self._imu_sub.topic_name, self._stamp_order.skipped - self._skips_at_start))
             ok, message = self._capture.capture()
         if not ok:
             raise CalibrationError(message)

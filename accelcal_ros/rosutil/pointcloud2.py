@@ -2,7 +2,8 @@
 sensor_msgs/PointCloud2 <-> numpy structured arrays: the part of sensor_msgs_py we need.
 
 :func:`pointcloud2_to_array` honours every field's ``offset``, ``datatype`` and ``count``,
-``point_step`` padding, ``row_step`` and ``is_bigendian``; it returns a packed structured
+``point_step`` padding, ``row_step`` and ``is_bigendian`` (fields that overlap are refused:
+an ``x`` made FLOAT64 over ``y`` read as -8.6e7..4.3e9 m, status 0); it returns a packed structured
 array (one row per point, ``height * width`` points, rows concatenated). Fields this
 package does not know (e.g. ``rgb`` packed as float32) are kept as they are.
 :func:`array_to_pointcloud2` builds the message from a structured array (``is_dense`` is
@@ -27,6 +28,12 @@ def dtype_from_fields(fields, point_step, is_bigendian=False):
         names.append(f.name)
         formats.append(base if f.count <= 1 else np.dtype((base, (f.count,))))
         offsets.append(f.offset)
+    spans = sorted((offset, offset + fmt.itemsize, name)
+                   for name, fmt, offset in zip(names, formats, offsets))
+    for (_, end, name), (start, _, other) in zip(spans, spans[1:]):
+        if start < end:
+            raise InputError(f'PointCloud2 fields {name!r} and {other!r} overlap (bytes '
+                             f'{start}-{end - 1}): the header does not describe the data')
     try:
         return np.dtype({'names': names, 'formats': formats, 'offsets': offsets,
                          'itemsize': point_step})

@@ -5,7 +5,8 @@ The same format is read by ``accelcal calibrate``/``apply``/``attitude``, writte
 ``accelcal record`` and ``accelcal apply``, and published by the driver's ``replay``
 backend: a format the features share, so it lives below them. Reading checks the
 header, the field count of every line (a truncated last line is reported with its
-number), numbers, finiteness and strictly increasing time.
+number), numbers, finiteness, strictly increasing time and the unit (a file in g is
+refused: :data:`G_UNITS_MEDIAN`).
 """
 from dataclasses import dataclass
 import io
@@ -19,6 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 CSV_HEADER = 't,ax,ay,az'
+G_UNITS_MEDIAN = (0.5, 2.0)
+"""A recording whose median |a| lies here is in g, not m/s^2 (at rest or moving by hand it
+is near 9.8 m/s^2; read as m/s^2 it would be a sensor in near free fall: calibrate found
+"0 positions, sensor moving", attitude skipped 9527 of 9600 samples with status 0)."""
 GYRO_COLUMNS = ('gx', 'gy', 'gz')
 
 
@@ -49,6 +54,13 @@ def read_recording(path: PathLike, finite: bool = True) -> Recording:
                               'or none', 1)
     accel = np.stack([columns['ax'], columns['ay'], columns['az']], axis=1)
     gyro = np.stack([columns[c] for c in GYRO_COLUMNS], axis=1) if present else None
+    with np.errstate(over='ignore', invalid='ignore'):   # a corrupt 1e300 sample: inf
+        magnitude = np.linalg.norm(accel, axis=1)
+    magnitude = magnitude[np.isfinite(magnitude) & (magnitude > 0.0)]
+    median = float(np.median(magnitude)) if magnitude.size else 0.0
+    if G_UNITS_MEDIAN[0] <= median <= G_UNITS_MEDIAN[1]:
+        raise FileFormatError(path, f'the accelerations look like g (median |a| {median:.3f}); '
+                              'a recording is in m/s^2 (multiply ax, ay, az by 9.80665)', 2)
     return Recording(columns['t'], accel, gyro)
 
 

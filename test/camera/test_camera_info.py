@@ -54,7 +54,7 @@ def test_written_file_reads_back_k_and_d_exactly(tmp_path, lens, d):
 def test_bad_files_name_the_file_and_the_key(tmp_path, edit, reason):
     """A wrong shape, model or missing key: FileFormatError naming the file and what."""
     path = tmp_path / 'cam.yaml'
-    save_camera_info(path, 'cam', CameraModel(640, 480, K, np.array(LENSES[0][1])))
+    save_camera_info(path, 'cam', CameraModel(1280, 960, K, np.array(LENSES[0][1])))
     doc = yaml.safe_load(path.read_text())
     edit(doc)
     path.write_text(yaml.safe_dump(doc))
@@ -63,13 +63,28 @@ def test_bad_files_name_the_file_and_the_key(tmp_path, edit, reason):
     assert 'cam.yaml' in str(info.value)
 
 
+def test_a_principal_point_outside_the_image_is_refused():
+    """
+    Refuse ``cx = 5000`` for a 640 px image (another camera's K), naming point and size.
+
+    It was accepted (P2P ranges 62.9 and 362.7 m for a true 6.1 m, status 0).
+    """
+    with pytest.raises(InputError, match=r'camera_info K: the principal point \(5000, 479.25\) '
+                                         r'px lies outside the 640x480 image'):
+        CameraModel.from_camera_info([600, 0, 5000, 0, 600, 479.25, 0, 0, 1], [], '', 640, 480)
+    with pytest.raises(InputError, match='outside the 640x480'):
+        CameraModel(640, 480, K)
+    assert CameraModel(0, 0, K).K[0, 2] == K[0, 2]   # size unknown: not checked
+
+
 def test_rig_takes_camera_info_intrinsics_of_the_right_size():
     """rig_with_models swaps K and D, keeps R and imu_to_camera; a wrong size is refused."""
-    rig = ring_rig(2, width=640, height=480)
-    model = CameraModel.from_camera_info(K.reshape(-1), LENSES[0][1], 'plumb_bob', 640, 480)
+    rig = ring_rig(2, width=1280, height=960)
+    model = CameraModel.from_camera_info(K.reshape(-1), LENSES[0][1], 'plumb_bob', 1280, 960)
     swapped = rig_with_models(rig, [model, model], ['a/camera_info', 'b/camera_info'])
     assert np.array_equal(swapped.cameras[1].K, K)
     assert np.array_equal(swapped.cameras[1].R, rig.cameras[1].R)
-    small = CameraModel.from_camera_info(K.reshape(-1), [], '', 320, 240)
-    with pytest.raises(InputError, match='b/camera_info: camera_info is 320x240'):
+    half = np.diag([0.5, 0.5, 1.0]) @ K
+    small = CameraModel.from_camera_info(half.reshape(-1), [], '', 640, 480)
+    with pytest.raises(InputError, match='b/camera_info: camera_info is 640x480'):
         rig_with_models(rig, [model, small], ['a/camera_info', 'b/camera_info'])

@@ -408,7 +408,17 @@ def test_other_web_pages_get_nothing_cross_origin_and_dns_rebinding():
             assert image is not None
             await ws.close()
             behind = {'Origin': 'https://views.example', 'X-Forwarded-Host': 'views.example'}
-            assert (await session.get(server.url + 'status', headers=behind)).status == 200
+            assert (await session.get(server.url, headers=behind)).status == 200
+            ws = await session.ws_connect(server.url + 'ws', origin='https://views.example',
+                                          headers={'X-Forwarded-Host': 'views.example'})
+            assert (await _frame(ws))[1] is not None
+            await ws.close()
+            # a rebound page can send X-Forwarded-Host on a same-origin GET (no Origin):
+            # /status leaked the tabs (200); without a token it answers loopback only
+            for headers in (behind, {'Host': f'evil.example:{server.port}',
+                                     'X-Forwarded-Host': f'evil.example:{server.port}'}):
+                reply = await session.get(server.url + 'status', headers=headers)
+                assert reply.status == 403 and 'loopback' in await reply.text(), headers
             for host in (f'localhost:{server.port}', f'[::1]:{server.port}'):
                 reply = await session.get(server.url + 'status', headers={'Host': host})
                 assert reply.status == 200, host
@@ -502,3 +512,109 @@ def test_tabs_are_paced_on_the_clock_and_a_late_drawing_loses_no_frame_set():
         due = next_draw_due(due, start[-1], period)
     start = np.array(start)
     assert (start[100:] - start[:-100]).min() >= 99 * period
+
+
+def test_hostile_tabs_get_a_reason_and_the_others_keep_their_frames(scene, capfd, monkeypatch):
+    """
+    Answer hostile tabs with a reason, close the abusive ones, keep the others going.
+
+    A binary frame, a 5 kB message, numbers as strings: a reason each, the view kept; a
+    flood of messages closes that tab (1008); a reload mid-handshake and a reset after
+    answers print nothing; every answer carries the security headers; a tab that acks
+    but never reads is closed once a frame waits SEND_TIMEOUT_S; stop() closes the tabs
+    with 1001 at once. Before: no reply, 1009 without a reason (view gone), "45" read as
+    45, another tab cut from 24 to 3 frames/s, tracebacks, a stuck slot, 14 s to stop.
+    """
+    import socket
+
+    from accelcal_ros.panorama import serve
+
+    monkeypatch.setattr(serve, 'SEND_TIMEOUT_S', 1.0)
+    server = _server(scene, frames=20)
+
+    async def run():
+        async with aiohttp.ClientSession() as session:
+            page = await session.get(server.url)
+            assert page.headers['X-Frame-Options'] == 'DENY'
+            assert "frame-ancestors 'none'" in page.headers['Content-Security-Policy']
+            assert page.headers['X-Content-Type-Options'] == 'nosniff'
+            assert page.headers['Server'] == 'accelcal'
+            status = await session.get(server.url + 'status')
+            assert status.headers['Cache-Control'] == 'no-store'
+            good = await session.ws_connect(server.url + 'ws')
+            assert (await _frame(good))[1] is not None
+            await good.send_bytes(b'\x00' * 10)
+            assert 'binary messages' in (await _frame(good))[0]['error']
+            await good.send_str(json.dumps({'az': 1.0, 'pad': 'x' * 5000}))
+            assert 'at most 4096 bytes' in (await _frame(good))[0]['error']
+            await good.send_str(json.dumps({'az': '45'}))
+            assert "must be a number, got '45'" in (await _frame(good))[0]['error']
+            await good.send_str(json.dumps({'az': 12.0}))
+            info, image = await _frame(good)
+            while info is not None and abs(info['az'] - 12.0) > 1e-6:
+                info, image = await _frame(good)
+            assert image is not None   # kept: the view still draws
+            flood = await session.ws_connect(server.url + 'ws')
+            for _ in range(serve.MAX_CONTROL_RATE[0] + 50):
+                await flood.send_str('{"ack": 1}')
+            async for _ in flood:
+                pass
+            assert flood.close_code == 1008
+            assert (await _frame(good))[1] is not None
+
+    asyncio.run(run())
+    # a reload mid-handshake: the upgrade request, then a reset before the answer
+    for _ in range(5):
+        raw = socket.create_connection(('127.0.0.1', server.port))
+        raw.sendall(b'GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n'
+                    b'Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n'
+                    b'Sec-WebSocket-Version: 13\r\n\r\n')
+        raw.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b'\x01\x00\x00\x00\x00\x00\x00\x00')
+        raw.close()
+
+    # a tab that acks without reading: a tiny receive buffer, masked acks, no recv; its
+    # 1280x720 frames fill the server's socket buffer (4 MB at most) in about 2 s
+    server.stop()
+    rig = ring_rig(3, 320, 240, 275.0, 45.0)
+    sets = [(render.render_camera_views(scene, rig, ROLL + 0.01 * k, PITCH), ROLL, PITCH,
+             0.1 * k) for k in range(5)]
+    server = ViewServer(ViewSet(rig, max_views=3, width=1280, height=720), sets, fps=20.0)
+    server.start('127.0.0.1', 0)
+    stuck = socket.socket()
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 2048)
+    stuck.connect(('127.0.0.1', server.port))
+    stuck.sendall(b'GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n'
+                  b'Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n'
+                  b'Sec-WebSocket-Version: 13\r\n\r\n')
+    ack = b'{"ack": 1}'
+    frame = bytes([0x81, 0x80 | len(ack)]) + b'\x00' * 4 + ack   # masked with key 0
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline and not server.views.names():
+        time.sleep(0.05)
+    assert server.views.names(), 'the stuck tab got no view'
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and server.views.names():
+        stuck.sendall(frame)
+        time.sleep(0.05)
+    freed = not server.views.names()   # while its socket is still open
+    stuck.close()
+    assert freed, server.views.names()
+
+    async def stop_with_a_tab():
+        async with aiohttp.ClientSession() as session:
+            last = await session.ws_connect(server.url + 'ws')
+            assert (await _frame(last))[1] is not None
+            started = time.monotonic()
+            stopping = asyncio.get_running_loop().run_in_executor(None, server.stop)
+            async for _ in last:   # a browser answers the close at once
+                pass
+            await stopping
+            return last.close_code, time.monotonic() - started
+
+    try:
+        code, took = asyncio.run(stop_with_a_tab())
+    finally:
+        server.stop()
+    assert code == 1001 and took < 3.0, (code, took)
+    err = capfd.readouterr().err
+    assert 'Traceback' not in err and 'Error handling request' not in err, err

@@ -37,12 +37,16 @@ def test_entries_parse_and_bad_entries_say_why():
     assert name == 'left' and pose.degrees() == pytest.approx((-40, 5, 30))
     assert parse_view_entry('top') == ('top', None)
     for entry, words in (('a:1,2', 'expected'), ('a:1,2,180', 'fov_h'), ('a:x,0,60', 'numbers'),
-                         ('a:nan,0,60', 'finite')):
+                         ('a:nan,0,60', 'finite'), ('a:1e308,0,60', 'turns')):
         with pytest.raises(InputError, match=words):
             parse_view_entry(entry)
     spec = next(s for s in ROI_PARAMS if s.name == 'roi_views')
     assert spec.check(['a', 'a:0,0,10'])[1] and 'twice' in spec.check(['a', 'a:0,0,10'])[1]
+    many = spec.check(['a', 'b'] + [f'v{k}' for k in range(100)] + ['b', 'a'])[1]
+    assert many == 'roi_views: a view name is listed twice: a, b', many   # not all 104
     assert spec.check(['a:0,0,0'])[1] and spec.check(['a', 'b:0,0,60'])[1] is None
+    # an unwrapped head-tracker yaw still names a direction; 1e308 deg names none
+    assert parse_view_entry('a:-3599970,0,60')[1].degrees()[0] == pytest.approx(30.0)
 
 
 def test_cap_and_all_or_nothing_changes():

@@ -40,7 +40,7 @@ def test_calibrate_from_bag_equals_csv(recording, fmt, tmp_path):
 
 
 @pytest.mark.parametrize('fmt', ('mcap', 'ros1'))
-def test_apply_writes_bag_with_calibrated_topic(recording, fmt, tmp_path):
+def test_apply_writes_bag_with_calibrated_topic(recording, fmt, tmp_path, capsys):
     """Apply BAG -o BAG: the Imu topic calibrated (as apply to CSV), other topics copied."""
     src = recording['bags'][fmt]
     out = bag_path(tmp_path, 'out', fmt)
@@ -67,6 +67,12 @@ def test_apply_writes_bag_with_calibrated_topic(recording, fmt, tmp_path):
         assert {'/imu/data_raw', '/imu/calibrated'} <= set(bag.topics())
         np.testing.assert_allclose(read_imu(bag, '/imu/data_raw').accel, recording['accel'],
                                    atol=1e-9)
+    # a name the bag already has: refused (it mixed both streams, 2x the messages, status 0)
+    again = bag_path(tmp_path, 'again', fmt)
+    assert main(['apply', str(both), '--topic', '/imu/data_raw', '--calibration',
+                 str(recording['yaml_csv']), '-o', str(again),
+                 '--corrected-topic', '/imu/calibrated']) == 1
+    assert 'already has that topic' in capsys.readouterr().err and not again.exists()
 
 
 @pytest.mark.parametrize('name, reason', [('bad topic!', 'only letters, digits'),

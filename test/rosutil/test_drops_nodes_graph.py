@@ -205,3 +205,86 @@ def test_cloud_assembler_counts_rejected_odometry(graph, tmp_path):
            'odometry rejected: ')
     graph.call(Trigger, 'cloud_assembler/save', timeout=30.0)   # answers (empty cloud)
     assert proc.proc.poll() is None, proc.output()
+
+
+def test_attitude_skips_unstamped_and_late_samples_and_restarts_after_a_jump_back(graph):
+    """
+    Skip unstamped and late samples; restart the estimate when the stamps jump back.
+
+    Stamp 0 (imu_unstamped) and a repeated stamp (imu_out_of_order) are skipped; stamps
+    jumping back by a second or more (a bag played again: imu_time_jump) restart the
+    estimate there. Before, such samples were published as they came, and after a jump back
+    the filter ran on a frozen clock: a tilted sensor's roll crawled from 0.19 to 13.9 deg.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import Imu
+
+    proc = graph.start('attitude')
+    diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
+    attitude = graph.collect(Vector3Stamped, 'attitude')
+    pub = graph.node.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
+    _burst(proc, diag, 'attitude', 'imu_unstamped', lambda: pub.publish(
+        _imu(0.0, 0.0, 9.80665, stamp_s=0.0)), 'header stamp 0 skipped')
+    stamp = 1000.0   # until the output is seen (discovery): stamps that increase
+    deadline = time.monotonic() + TIMEOUT_S
+    while not attitude.snapshot()[0] and time.monotonic() < deadline:
+        stamp += 0.01
+        pub.publish(_imu(0.0, 0.0, 9.80665, stamp_s=stamp))
+        time.sleep(0.05)
+    assert all(m.header.stamp.sec >= 1000 for m in attitude.snapshot()[0]), \
+        'a sample stamped 0 was published'
+    stuck = _imu(0.0, 0.0, 9.80665, stamp_s=2000.0)   # every copy after the first: late
+    _burst(proc, diag, 'attitude', 'imu_out_of_order', lambda: pub.publish(stuck),
+           'not after the previous one')
+    time.sleep(1.0)   # what was published has arrived
+    published = [m for m in attitude.snapshot()[0] if m.header.stamp.sec == 2000]
+    assert len(published) == 1, len(published)
+    g = 9.80665
+    roll = math.radians(-20.0)   # level before the jump, rolled -20 deg after it
+    stamp = 100.0
+    values = {}
+    deadline = time.monotonic() + TIMEOUT_S
+    while time.monotonic() < deadline and int(values.get('imu_time_jump_dropped', 0)) < 1:
+        values = _dropped(diag, 'attitude')
+        stamp += 0.01
+        pub.publish(_imu(0.0, g * math.sin(roll), g * math.cos(roll), stamp_s=stamp))
+        time.sleep(0.05)
+    assert 'jumped back by 1899.99' in values['imu_time_jump_last_reason'], values
+    after = [m for m in attitude.snapshot()[0] if m.header.stamp.sec < 2000]
+    assert after, proc.output()
+    first = min(after, key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
+    assert math.degrees(first.vector.x) == pytest.approx(-20.0, abs=0.5), first
+
+
+def test_calibration_nodes_say_when_no_imu_sample_arrived(graph, tmp_path):
+    """
+    Name the topic when a capture finds no IMU sample; count those skipped for stamps.
+
+    All three nodes said "moving" / "not still" before.
+    """
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import Imu
+    from std_srvs.srv import Trigger
+
+    nodes = {'calibration': {'output_file': str(tmp_path / 'cal.yaml'), 'attitude_node': ''},
+             'lidar_calibration': {'output_file': str(tmp_path / 'bs.yaml')},
+             'rig_calibration': {'output_file': str(tmp_path / 'rig.yaml'),
+                                 'capture_dir': str(tmp_path / 'cap'), 'cameras': ['cam0']}}
+    procs = {node: graph.start(node, params) for node, params in nodes.items()}
+    for node, proc in procs.items():
+        assert graph.call(Trigger, f'{node}/start', timeout=30.0).success, proc.output()
+        answer = graph.call(Trigger, f'{node}/capture', timeout=30.0)
+        assert not answer.success
+        assert answer.message.startswith('no usable sample on /imu/data_raw since start: is '
+                                         'the driver running'), (node, answer.message)
+    pub = graph.node.create_publisher(Imu, 'imu/data_raw', qos_profile_sensor_data)
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    diag = graph.collect(DiagnosticArray, '/diagnostics', 50)
+    _burst(procs['calibration'], diag, 'calibration', 'imu_unstamped', lambda: pub.publish(
+        _imu(0.0, 0.0, 9.80665, stamp_s=0.0)), 'header stamp 0 skipped')
+    answer = graph.call(Trigger, 'calibration/capture', timeout=30.0)
+    assert not answer.success and 'skipped for their header stamps' in answer.message, \
+        answer.message

@@ -68,6 +68,10 @@ def test_bad_messages_raise_clear_errors():
     msg.fields[0].datatype = 42
     with pytest.raises(InputError, match='unknown datatype'):
         pointcloud2_to_array(msg)
+    msg = array_to_pointcloud2(_cloud(2), PointCloud2, PointField)
+    msg.fields[0].datatype = 8   # x as FLOAT64 over y: was read, x -8.6e7..4.3e9 m
+    with pytest.raises(InputError, match="'x' and 'y' overlap"):
+        pointcloud2_to_array(msg)
     empty = array_to_pointcloud2(_cloud(0), PointCloud2, PointField)
     assert len(pointcloud2_to_array(empty)) == 0
     nan = _cloud(3)

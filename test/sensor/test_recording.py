@@ -89,3 +89,20 @@ def test_read_recording_keeps_nan_samples_and_gyro(tmp_path):
     path.write_text('t,ax,ay,az,gx\n0,0,0,9.8,0\n')
     with pytest.raises(FileFormatError, match='give all of gx,gy,gz'):
         read_recording(path)
+
+
+def test_a_recording_in_g_is_refused_with_the_unit(tmp_path):
+    """
+    Refuse ``t,ax,ay,az`` in g (median |a| near 1), naming the unit.
+
+    Read as m/s^2 it was a sensor in free fall (calibrate: "0 positions, sensor moving";
+    attitude skipped 99 % with status 0).
+    """
+    rng = np.random.default_rng(1)
+    t = np.arange(500) * 0.01
+    down = rng.normal(size=(500, 3)) * 0.05 + [0.0, 0.0, 1.0]
+    save_recording(tmp_path / 'g.csv', t, down)
+    with pytest.raises(FileFormatError, match=r'look like g \(median \|a\| (0\.99|1\.0)'):
+        load_recording(str(tmp_path / 'g.csv'))
+    save_recording(tmp_path / 'ms2.csv', t, down * 9.80665)
+    assert load_recording(str(tmp_path / 'ms2.csv'))[1].shape == (500, 3)
