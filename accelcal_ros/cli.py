@@ -195,6 +195,8 @@ def output_problem(dest: str, path: str, args: argparse.Namespace) -> Optional[s
     from accelcal_ros.filecheck import existing_output_problem
     from accelcal_ros.outputs import parent_problem
 
+    if path == '-':   # wrote a file named "-"
+        return "'-': standard output is not an output here; give a file path"
     if os.path.isdir(path):
         return existing_output_problem(path) if is_file_output(dest, args) else None
     problem = existing_output_problem(path)

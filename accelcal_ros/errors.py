@@ -6,9 +6,20 @@ Every error a user can cause (bad file, bad parameter, bad geometry, bad device)
 message, which always says what was wrong and, where possible, what to do.
 """
 import os
-from typing import Optional, Union
+from typing import Optional, Sequence, Union
 
 PathLike = Union[str, 'os.PathLike[str]']
+LISTED_NAMES = 5
+"""Names a message lists (unknown keys or columns, repeated names); the rest are counted:
+a text file read as YAML had one "key" a line (``/etc/shadow`` as a calibration file:
+several kB of reason), a CSV header of 10^6 columns a 10.9 MB error line."""
+
+
+def listed(names: Sequence[str]) -> str:
+    """Return ``names`` for a message: the first :data:`LISTED_NAMES`, 40 characters each."""
+    shown = [n if len(n) <= 40 else n[:37] + '...' for n in names[:LISTED_NAMES]]
+    more = len(names) - len(shown)
+    return ', '.join(shown) + (f' and {more} more' if more else '')
 
 
 class AccelcalError(Exception):

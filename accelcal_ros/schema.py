@@ -11,9 +11,9 @@ are listed in ``docs/formats.md``; :data:`CSV_FORMATS` is the one list of CSV fo
 """
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Mapping, Optional, Tuple
 
-from accelcal_ros.errors import InputError
+from accelcal_ros.errors import InputError, listed
 
 Check = Callable[[Any], bool]
 
@@ -105,18 +105,6 @@ def text_mapping(value: Any) -> bool:
     return isinstance(value, dict) and all(isinstance(k, str) for k in value)
 
 
-LISTED_KEYS = 5
-"""Unknown keys named in a refusal; the rest are counted (a text file read as YAML has
-one "key" per line: ``/etc/shadow`` as a calibration file was several kB of reason)."""
-
-
-def _listed(names: Sequence[str]) -> str:
-    """Return ``names`` for a message: the first :data:`LISTED_KEYS`, 40 characters each."""
-    shown = [n if len(n) <= 40 else n[:37] + '...' for n in names[:LISTED_KEYS]]
-    more = len(names) - len(shown)
-    return ', '.join(shown) + (f' and {more} more' if more else '')
-
-
 def check_mapping(data: Any, schema: Schema, what: str, where: str = '') -> None:
     """
     Check a parsed YAML mapping against ``schema``; InputError naming the key otherwise.
@@ -133,9 +121,9 @@ def check_mapping(data: Any, schema: Schema, what: str, where: str = '') -> None
                if key.required and data.get(k) is None]
     if missing and unknown:
         raise InputError(f'missing key(s) {", ".join(missing)} and unknown key(s) '
-                         f'{_listed([where + k for k in unknown])} in {what} (misspelt?)')
+                         f'{listed([where + k for k in unknown])} in {what} (misspelt?)')
     if unknown:
-        raise InputError(f'unknown key(s) {_listed([where + k for k in unknown])}; {what} '
+        raise InputError(f'unknown key(s) {listed([where + k for k in unknown])}; {what} '
                          f'holds only {", ".join(where + k for k in schema)} (misspelt?)')
     if missing:
         raise InputError(f'missing key(s) {", ".join(missing)} ({what}; truncated file?)')

@@ -18,7 +18,7 @@ import re
 import sys
 from typing import Any, Dict, Optional, Sequence, TYPE_CHECKING
 
-from accelcal_ros.errors import FileFormatError, PathLike
+from accelcal_ros.errors import FileFormatError, listed, PathLike
 from accelcal_ros.fileio import read_input_text
 import yaml
 
@@ -248,11 +248,11 @@ def _numeric_rows(path, reader, required, optional, finite, increasing):
                               f'expected {expected}', 1)
     unknown = [c for c in header if c not in required and c not in optional]
     if unknown:
-        raise FileFormatError(path, f'unknown column(s) {unknown}; this file holds only '
-                              f'{expected} (misspelt, or another kind of file?)', 1)
+        raise FileFormatError(path, f'unknown column(s) {listed(unknown)}; this file holds '
+                              f'only {expected} (misspelt, or another kind of file?)', 1)
     twice = sorted({c for c in header if header.count(c) > 1})
     if twice:
-        raise FileFormatError(path, f'column(s) {twice} named more than once', 1)
+        raise FileFormatError(path, f'column(s) {listed(twice)} named more than once', 1)
     wanted = [c for c in list(required) + list(optional) if c in header]
     index = [header.index(c) for c in wanted]
     k_increasing = wanted.index(increasing) if increasing is not None else None
@@ -271,7 +271,9 @@ def _numeric_rows(path, reader, required, optional, finite, increasing):
             shown = shown if len(shown) <= 80 else shown[:77] + '...'
             raise FileFormatError(path, f'non-numeric value in {shown!r}', line) from None
         if finite and not all(math.isfinite(v) for v in values):
-            raise FileFormatError(path, f'NaN or infinite value in {",".join(row)!r}', line)
+            shown = ','.join(row)
+            shown = shown if len(shown) <= 80 else shown[:77] + '...'
+            raise FileFormatError(path, f'NaN or infinite value in {shown!r}', line)
         if k_increasing is not None:
             k = k_increasing
             if not math.isfinite(values[k]):

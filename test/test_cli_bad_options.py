@@ -15,6 +15,7 @@ import sys
 
 from accelcal_ros import cli
 from accelcal_ros.cli import build_parser, main
+import numpy as np
 import pytest
 
 BAD_VALUES = ('0', '-1', 'nan', 'inf', '1e999', 'text')
@@ -233,6 +234,32 @@ def test_two_outputs_with_one_path_are_refused(tmp_path, capsys):
     assert main(['calibrate', str(rec), '-o', str(out), '--plot', str(out)]) == 1
     err = capsys.readouterr().err
     assert 'two outputs' in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_dash_and_a_storage_suffix_are_not_outputs(tmp_path, capsys, monkeypatch):
+    """
+    Refuse ``-o -`` and a bag output named like a storage file, in one line each.
+
+    ``-o -`` wrote a file named ``-``; ``apply -o y.db3`` made a folder ``y.db3`` holding
+    ``y.db3.mcap``. Now status 1 and nothing written.
+    """
+    from accelcal_ros.recording.sim_bags import write_imu_bag
+
+    monkeypatch.chdir(tmp_path)
+    rec = tmp_path / 'rec.csv'
+    rec.write_text('t,ax,ay,az\n0,0,0,9.8\n0.01,0,0,9.8\n')
+    assert main(['attitude', str(rec), '-o', '-']) == 1
+    assert 'standard output' in capsys.readouterr().err and not (tmp_path / '-').exists()
+    write_imu_bag(tmp_path / 'bag', 'mcap', np.arange(20) * 0.01,
+                  np.tile([0.0, 0.1, 9.8], (20, 1)))
+    (tmp_path / 'c.yaml').write_text('format: accelcal_ros/calibration 1\nmodel: full\n'
+                                     'scale: [1, 1, 1]\nbias: [0, 0, 0]\n'
+                                     'misalignment: [0, 0, 0]\n')
+    for name in ('y.db3', 'y.mcap'):
+        assert main(['apply', 'bag', '--calibration', 'c.yaml', '-o', name]) == 1
+        err = capsys.readouterr().err
+        assert 'a rosbag2 bag is a directory' in err and err.count('\n') == 1, err
+        assert not (tmp_path / name).exists()
 
 
 @pytest.mark.parametrize('argv', [

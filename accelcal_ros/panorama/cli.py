@@ -33,6 +33,27 @@ def video_fps(bag: Any, topic: str, t: Any, requested: Any) -> float:
     return float(np.clip(count / span, 1.0, 120.0)) if span > 0 else 10.0
 
 
+def rig_images(paths: Any, rig: Any) -> list:
+    """
+    Read one image per rig camera, in rig order (stitch, view and serve of image files).
+
+    A wrong count names the cameras; one file given for two cameras is refused (three
+    copies of ``img0.png`` made a panorama with status 0).
+    """
+    from accelcal_ros.errors import InputError
+
+    if len(paths) != len(rig):
+        raise InputError(f'{len(paths)} image(s) given but the rig has {len(rig)} cameras '
+                         f'({", ".join(rig.names)}); give one image per camera, in rig order')
+    real = [os.path.realpath(p) for p in paths]
+    for k, path in enumerate(real):
+        if path in real[:k]:
+            first = real.index(path)
+            raise InputError(f'{paths[k]} is given for cameras {rig.names[first]} and '
+                             f'{rig.names[k]}: give each camera its own image')
+    return [read_image(p) for p in paths]
+
+
 def bag_topics_and_model(args: Any, rig: Any) -> Tuple[list, Any]:
     """
     Return a BAG input's ``--images`` topics and its ``--calibration`` model (or None).
@@ -42,6 +63,9 @@ def bag_topics_and_model(args: Any, rig: Any) -> Tuple[list, Any]:
     """
     from accelcal_ros.errors import InputError
 
+    if not args.image_topics and len(rig) > 1:
+        raise InputError(f'give --images TOPIC ... for a BAG: one image topic per camera of '
+                         f'the rig, in rig order ({len(rig)} cameras: {", ".join(rig.names)})')
     topics = args.image_topics or [None]
     if len(topics) != len(rig):
         raise InputError(f'{len(topics)} --images topic(s) for a rig of {len(rig)} cameras '
@@ -156,17 +180,13 @@ def _stitch(args):
         raise InputError('stitch needs --roll and --pitch for image files (a BAG takes '
                          '--attitude or --imu)')
     rig = load_rig(args.rig)
-    if len(args.images) != len(rig):
-        raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
-                         f'cameras ({", ".join(rig.names)}); give one image per camera, '
-                         'in rig order')
     for name in ('roll', 'pitch', 'blend_deg'):
         if not math.isfinite(getattr(args, name)):
             raise InputError(f'--{name.replace("_", "-")} must be a finite number')
     geometry = PanoramaGeometry(args.width, args.height, args.fov_h, args.fov_v,
                                 args.projection)
     imu_to_camera, _ = resolve_imu_to_camera(rig, args.imu_to_camera)
-    images = [read_image(path) for path in args.images]
+    images = rig_images(args.images, rig)
     channels = 1 if all(im.ndim == 2 for im in images) else 3
     stitcher = Stitcher(rig, geometry, imu_to_camera, blend_width_deg=args.blend_deg,
                         channels=channels)

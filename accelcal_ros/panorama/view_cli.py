@@ -140,7 +140,7 @@ def _make_view(args: Any, rig: Any, layout: Any) -> Any:
 
 def _view(args: Any) -> int:
     from accelcal_ros.camera.rig import load_rig
-    from accelcal_ros.panorama.cli import is_bag_input, read_image, write_image
+    from accelcal_ros.panorama.cli import is_bag_input, rig_images, write_image
     from accelcal_ros.panorama.view import ViewMosaic
 
     if is_bag_input(args):
@@ -152,11 +152,7 @@ def _view(args: Any) -> int:
         raise InputError('view needs --roll and --pitch for image files (a BAG takes '
                          '--attitude or --imu)')
     rig = load_rig(args.rig)
-    if len(args.images) != len(rig):
-        raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
-                         f'cameras ({", ".join(rig.names)}); give one image per camera, '
-                         'in rig order')
-    images = [read_image(path) for path in args.images]
+    images = rig_images(args.images, rig)
     mosaic = ViewMosaic(rig, 1 if all(im.ndim == 2 for im in images) else 3)
     for i, (path, image) in enumerate(zip(args.images, images)):
         try:
@@ -276,16 +272,13 @@ class _NoSink:
 
 def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
     """Return ``(frame sets, fps)`` of the command's images or bag."""
-    from accelcal_ros.panorama.cli import bag_topics_and_model, is_bag_input, read_image
+    from accelcal_ros.panorama.cli import bag_topics_and_model, is_bag_input, rig_images
 
     if not is_bag_input(args):
         if args.roll is None or args.pitch is None:
             raise InputError('serve needs --roll and --pitch for image files (a BAG takes '
                              '--attitude or --imu)')
-        if len(args.images) != len(rig):
-            raise InputError(f'{len(args.images)} image(s) given but the rig has {len(rig)} '
-                             'cameras; give one image per camera, in rig order')
-        images = [read_image(path) for path in args.images]
+        images = rig_images(args.images, rig)
         return [(images, math.radians(args.roll), math.radians(args.pitch), 0.0)], 10.0
     from accelcal_ros.panorama.bag import stitch_recording
     from accelcal_ros.recording.cli_support import open_bag, warn

@@ -28,7 +28,7 @@ import re
 import threading
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
-from accelcal_ros.errors import InputError
+from accelcal_ros.errors import InputError, listed
 from accelcal_ros.panorama.view import LevelledView, ViewMosaic
 from accelcal_ros.panorama.view_grid import CameraSources
 from accelcal_ros.panorama.view_pose import check_view_size, ViewPose
@@ -67,9 +67,7 @@ def repeated_names_reason(names: List[str]) -> Optional[str]:
     repeated = sorted({n for n in names if names.count(n) > 1})
     if not repeated:
         return None
-    shown = ', '.join(repeated[:5]) + (f' and {len(repeated) - 5} more' if len(repeated) > 5
-                                       else '')
-    return f'a view name is listed twice: {shown}'
+    return f'a view name is listed twice: {listed(repeated)}'
 
 
 def parse_view_entry(entry: str) -> Tuple[str, Optional[ViewPose]]:

@@ -59,6 +59,10 @@ def format_for(path: PathLike, fmt: Optional[str] = None) -> str:
         return 'ros1'
     if fmt == 'ros1':
         raise InputError(f'{path}: a ROS 1 bag must end in .bag')
+    if str(path).rstrip('/').endswith(('.db3', '.mcap')):   # was a folder y.db3/y.db3.mcap
+        raise InputError(f'{path}: a rosbag2 bag is a directory (its storage file is made '
+                         'inside it): name it without .db3 or .mcap; --format picks the '
+                         'storage (mcap or sqlite3)')
     return fmt or 'mcap'
 
 

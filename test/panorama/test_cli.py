@@ -1,5 +1,6 @@
 """``accelcal stitch`` and ``accelcal study horizon`` end to end, with bad inputs."""
 import math
+import os
 
 from accelcal_ros.camera.rig import ring_rig, save_rig
 from accelcal_ros.cli import main
@@ -60,7 +61,8 @@ def test_stitch_cylindrical_and_grey(setup):
 @pytest.mark.parametrize('case, words', [
     ('count', 'rig has 3 cameras'), ('size', r"camera 1 \('cam1'\).*the rig file says"),
     ('missing', 'image not found'), ('rig', r'missing key\(s\) K'),
-    ('notimage', 'not an image'), ('nan', 'finite'), ('fov', 'fov.v')])
+    ('notimage', 'not an image'), ('nan', 'finite'), ('fov', 'fov.v'),
+    ('twice', 'is given for cameras cam0 and cam2')])
 def test_stitch_bad_input_exits_2_and_writes_nothing(setup, tmp_path, capsys, case, words):
     """Every bad input is one clear line, status 2, and no output file."""
     folder, paths, _ = setup
@@ -85,6 +87,8 @@ def test_stitch_bad_input_exits_2_and_writes_nothing(setup, tmp_path, capsys, ca
         extra = ['--roll', 'nan']
     elif case == 'fov':
         extra = ['--fov-v', '200']
+    elif case == 'twice':   # one file for two cameras: was stitched, status 0
+        images[2] = os.path.join(os.path.dirname(images[0]), '.', os.path.basename(images[0]))
     out = tmp_path / 'out.png'
     args = ['stitch', '--rig', rig, '--roll', '0', '--pitch', '0', '--width', '360',
             '--height', '240', *extra, '-o', str(out), *images]

@@ -90,6 +90,11 @@ def test_stitch_bag_video_and_bad_topics(recording, tmp_path, capsys):
                  '--attitude', '/attitude', '-o', str(bad)]) != 0
     assert '1 --images topic(s) for a rig of 3 cameras' in capsys.readouterr().err
     assert not bad.exists()
+    # no --images at all: said "1 --images topic(s)" when none was given
+    assert main(['stitch', str(bag), '--rig', str(root / 'rig.yaml'), '--attitude',
+                 '/attitude', '-o', str(bad)]) != 0
+    assert 'give --images TOPIC ... for a BAG' in capsys.readouterr().err
+    assert not bad.exists()
     for name in ('pano.png', 'pano.gif'):   # one image's name: refused, no folder made
         assert main(['stitch', str(bag), '--rig', str(root / 'rig.yaml'), '--images', *TOPICS,
                      '--attitude', '/attitude', '-o', str(tmp_path / name)]) != 0
