@@ -9,12 +9,12 @@ rad) or, from a sensor_msgs/Imu topic, the roll/pitch of the calibrated specific
 (:class:`~accelcal_ros.sensor.tilt.TiltEstimator`, paper A eq. 7, the calibration
 applied when given). Times are absolute seconds (header stamps unless ``--stamp receive``).
 """
-from typing import Any, Dict, Iterable, Iterator, Optional, Tuple, TYPE_CHECKING
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, TYPE_CHECKING
 
 from accelcal_ros.errors import InputError
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagReader
-from accelcal_ros.recording.streams import message_time_s
+from accelcal_ros.recording.streams import message_time_s, StampLog
 import numpy as np
 
 if TYPE_CHECKING:
@@ -34,12 +34,14 @@ def first_camera_info(bag: BagReader, topic: Optional[str]) -> Dict[str, Any]:
 
 
 def run_p2p(bag: BagReader, pipeline: 'P2PPipeline', image_topic: Optional[str],
-            attitude: Tuple[np.ndarray, np.ndarray, np.ndarray]) -> Iterator['FrameResult']:
+            attitude: Tuple[np.ndarray, np.ndarray, np.ndarray],
+            warnings: Optional[List[str]] = None) -> Iterator['FrameResult']:
     """
     Yield the :class:`~accelcal_ros.p2p.pipeline.FrameResult` of every image of a topic.
 
     ``attitude`` is ``(t_s, roll, pitch)`` arrays sorted by time; ``pipeline`` holds the
-    camera already.
+    camera already. ``warnings``, if given, gets the image topic's stamp checks at the
+    end (20 images stamped alike were solved at one attitude without a word).
     """
     import cv2
 
@@ -47,7 +49,9 @@ def run_p2p(bag: BagReader, pipeline: 'P2PPipeline', image_topic: Optional[str],
     t_att, roll, pitch = attitude
     tolerance = pipeline.values['attitude_tolerance_s']
     fed = 0
+    log = StampLog()
     for message in bag.messages([name], f'p2p on {name}'):
+        log.add(message)
         stamp = message_time_s(message, bag.stamp)
         while fed < len(t_att) and t_att[fed] <= stamp + tolerance:
             yield from pipeline.add_attitude(float(t_att[fed]), roll[fed], pitch[fed])
@@ -62,6 +66,8 @@ def run_p2p(bag: BagReader, pipeline: 'P2PPipeline', image_topic: Optional[str],
     if pipeline.pending is not None:
         pending, pipeline.pending = pipeline.pending, None
         yield pipeline._process(*pending)
+    if warnings is not None:
+        warnings += log.warnings(name, bag.stamp, repeats=True)
 
 
 def results_csv(results: Iterable['FrameResult']) -> Tuple[str, int, int]:

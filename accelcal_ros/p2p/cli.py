@@ -340,7 +340,10 @@ def _p2p_bag_main(args):
             raise InputError(reason)
         t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
         warn(warnings)
-        text, solved, total = results_csv(run_p2p(bag, pipeline, args.image, (t, roll, pitch)))
+        image_warnings: list = []
+        text, solved, total = results_csv(run_p2p(bag, pipeline, args.image, (t, roll, pitch),
+                                                  image_warnings))
+        warn(image_warnings)
     write_text_atomic(args.output, text)
     print(f'{solved} of {total} images solved; wrote {args.output}')
     return 0

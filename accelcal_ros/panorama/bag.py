@@ -16,7 +16,7 @@ Output. ``*.mp4``/``*.avi``/``*.mkv``: one video (OpenCV VideoWriter, written to
 temporary name and renamed when complete); anything else: a folder of
 ``frame_NNNNNN.png`` (a failed run removes the frames it wrote and the folders it made).
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import os
 from typing import Any, Callable, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
@@ -24,7 +24,7 @@ from accelcal_ros.errors import InputError
 from accelcal_ros.fileio import missing_folders, remove_empty_folders
 from accelcal_ros.recording import convert
 from accelcal_ros.recording.bag import BagMessage, BagReader
-from accelcal_ros.recording.streams import message_time_s
+from accelcal_ros.recording.streams import message_time_s, StampLog
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -43,6 +43,8 @@ class StitchCounts:
     frames: int = 0
     no_attitude: int = 0
     images: int = 0
+    warnings: List[str] = field(default_factory=list)
+    """The image topics' stamp checks (backwards, repeated, far from the receive times)."""
 
 
 class FrameSink:
@@ -146,9 +148,11 @@ def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Opti
     t_att, roll, pitch = (np.asarray(a, dtype=float) for a in attitude)
     latest: List[Optional[Tuple[float, BagMessage]]] = [None] * len(names)
     counts = StitchCounts()
+    logs = {name: StampLog() for name in names}
     for message in bag.messages(names, 'stitching'):   # the bar: images read of all
         i = index[message.topic]
         counts.images += 1
+        logs[message.topic].add(message)
         latest[i] = (message_time_s(message, bag.stamp), message)
         ready = [item for item in latest if item is not None]
         if len(ready) < len(latest):
@@ -178,4 +182,6 @@ def stitch_recording(bag: BagReader, stitcher: 'Stitcher', topics: Sequence[Opti
         sink.write(stitcher.render())
         counts.frames += 1
         latest = [None] * len(names)
+    for name in names:   # images stamped alike or backwards were stitched without a word
+        counts.warnings += logs[name].warnings(name, bag.stamp, repeats=True)
     return counts

@@ -285,6 +285,7 @@ def _stitch_bag(args):
         try:
             counts = stitch_recording(bag, stitcher, topics, (t, roll, pitch), sink,
                                       args.sync_s)
+            warn(counts.warnings)
             ok = counts.frames > 0
         finally:
             sink.close(ok)

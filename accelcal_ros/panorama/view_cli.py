@@ -224,6 +224,7 @@ def _view_bag(args: Any) -> int:
         try:
             counts = stitch_recording(bag, cast(Any, frames), topics, (t, roll, pitch), sink,
                                       args.sync_s, before_render=frames.at_stamp)
+            warn(counts.warnings)
             ok = counts.frames > 0
         finally:
             sink.close(ok)
@@ -289,8 +290,10 @@ def _serve_frames(args: Any, rig: Any) -> Tuple[list, float]:
     with open_bag(args.images[0], args.stamp) as bag:
         t, roll, pitch, warnings = attitude_series(bag, args.attitude, args.imu, model)
         warn(warnings)
-        stitch_recording(bag, cast(Any, collect), topics, (t, roll, pitch),
-                         cast(Any, _NoSink()), args.sync_s, before_render=collect.at_stamp)
+        counts = stitch_recording(bag, cast(Any, collect), topics, (t, roll, pitch),
+                                  cast(Any, _NoSink()), args.sync_s,
+                                  before_render=collect.at_stamp)
+        warn(counts.warnings)
     if not collect.sets:
         raise InputError(f'no complete frame set with an attitude in {args.images[0]}')
     stamps = [s[3] for s in collect.sets]

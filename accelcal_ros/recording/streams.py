@@ -46,13 +46,14 @@ def used_times_ns(header_ns: np.ndarray, receive_ns: np.ndarray, stamp: str) -> 
     return receive_ns if stamp == 'receive' else np.where(header_ns != 0, header_ns, receive_ns)
 
 
-def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp: str
-                 ) -> List[str]:
+def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp: str,
+                 repeats: bool = False) -> List[str]:
     """
     Return warnings about a topic's times (``header_s`` 0 where there is no header).
 
-    Backwards steps and jumps are counted on the times used; the header/receive offset
-    is reported when its median magnitude exceeds :data:`HEADER_RECEIVE_WARN_S`.
+    Backwards steps and jumps are counted on the times used (and, with ``repeats``, times
+    equal to the previous one: images, which no later step sorts out); the header/receive
+    offset is reported when its median magnitude exceeds :data:`HEADER_RECEIVE_WARN_S`.
     """
     header_s = np.asarray(header_s, dtype=float)
     receive_s = np.asarray(receive_s, dtype=float)
@@ -77,6 +78,11 @@ def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp:
         if back:
             warnings.append(f'{topic}: time goes backwards {back} times (largest '
                             f'{-float(steps.min()):.6f} s); messages are taken in time order')
+        same = int((steps == 0).sum())
+        if repeats and same:
+            warnings.append(f'{topic}: {same} of {len(used)} messages repeat the previous time '
+                            '(a camera driver that does not stamp each frame?): they are '
+                            'used with that time')
         forward = steps[steps > 0]
         if forward.size:
             period = float(np.median(forward))
@@ -213,10 +219,10 @@ class StampLog:
         self.header_ns.append(message.header_ns)
         self.receive_ns.append(message.receive_ns)
 
-    def warnings(self, topic: str, stamp: str) -> List[str]:
+    def warnings(self, topic: str, stamp: str, repeats: bool = False) -> List[str]:
         """Return :func:`check_stamps` of what was kept."""
         return check_stamps(topic, np.array(self.header_ns, dtype=np.int64) * 1e-9,
-                            np.array(self.receive_ns, dtype=np.int64) * 1e-9, stamp)
+                            np.array(self.receive_ns, dtype=np.int64) * 1e-9, stamp, repeats)
 
     def times_s(self, stamp: str) -> np.ndarray:
         """Return the times used (absolute s; :func:`used_times_ns`)."""

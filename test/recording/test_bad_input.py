@@ -146,6 +146,12 @@ def test_stamp_warnings(tmp_path):
         imu = read_imu(bag, None)
     assert 'using receive times' in '\n'.join(imu.warnings)
     assert check_stamps('/x', np.zeros(3), np.arange(3.0), 'header') == []
+    # images stamped alike (a driver that stamps once): said, where no sort drops them
+    same = check_stamps('/cam', np.full(20, 5.0), 5.0 + 0.1 * np.arange(20), 'header',
+                        repeats=True)
+    assert any('19 of 20 messages repeat the previous time' in w for w in same), same
+    assert not any('repeat' in w for w in check_stamps('/cam', np.full(20, 5.0), 5.0 + 0.1
+                                                       * np.arange(20), 'header'))
 
 
 def test_progress_bar_only_on_a_terminal(monkeypatch):
