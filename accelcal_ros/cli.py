@@ -215,6 +215,12 @@ def run_command(args: argparse.Namespace) -> int:
         problem = output_problem(dest, output, args)
         if problem:  # a directory, /dev/null, a FIFO: refused before any work, not after it
             raise InputError(f'output {problem}')
+        suffixes = getattr(args, 'output_suffixes', {}).get(dest)
+        if suffixes and not output.lower().endswith(tuple(suffixes)):
+            # `calibrate -o calib.png` wrote YAML; `boresight -o positions/pos16.ply` wrote
+            # YAML where the next run read it as a scan
+            raise InputError(f'output {output!r} must end with {" or ".join(suffixes)} '
+                             f'(what this command writes)')
         if os.path.realpath(output) in (os.path.realpath(o) for o in outputs[:k]):
             raise InputError(f'{output} is given for two outputs; the second would overwrite '
                              'the first: give each output its own path')

@@ -262,6 +262,31 @@ def test_dash_and_a_storage_suffix_are_not_outputs(tmp_path, capsys, monkeypatch
         assert not (tmp_path / name).exists()
 
 
+@pytest.mark.parametrize('argv, suffix', [
+    (['calibrate', 'rec.csv', '-o', 'calib.png'], '.yaml or .yml'),
+    (['attitude', 'rec.csv', '-o', 'att.yaml'], '.csv'),
+    (['boresight', 'positions', '-o', 'positions/pos16.ply'], '.yaml or .yml'),
+    (['p2p', 'bag', '-o', 'p.yaml'], '.csv'),
+    (['rig-calibrate', 'capture', '--board', '9x6', '--square-m', '0.025', '-o', 'r.csv'],
+     '.yaml or .yml')])
+def test_an_output_named_for_another_format_is_refused(tmp_path, capsys, monkeypatch, argv,
+                                                       suffix):
+    """
+    Refuse an output whose extension is not the format written, before any work.
+
+    `calibrate -o calib.png` wrote YAML, `boresight -o positions/pos16.ply` a file the
+    next run read as a scan.
+    """
+    monkeypatch.chdir(tmp_path)
+    for folder in ('positions', 'bag', 'capture'):
+        (tmp_path / folder).mkdir()
+    (tmp_path / 'rec.csv').write_text('t,ax,ay,az\n0,0,0,9.8\n0.01,0,0,9.8\n')
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert f'must end with {suffix}' in err and err.count('\n') == 1, err
+    assert not os.path.exists(argv[argv.index('-o') + 1])
+
+
 @pytest.mark.parametrize('argv', [
     ['study', 'roi', '--json', '{dir}'],
     ['study', 'p2p', '--json', '{dir}'],

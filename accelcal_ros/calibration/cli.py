@@ -46,7 +46,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
     p.add_argument('--window-s', type=float_in(0.0, 600.0, low_open=True), default=0.3,
                    help='moving-variance window in s (default 0.3)')
     p.add_argument('--plot', help='also write the calibration plot (PNG) here')
-    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}))
+    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}),
+                   output_suffixes={'output': ('.yaml', '.yml')})
 
     p = subparsers.add_parser('apply', help='write calibrated samples of a recording')
     p.add_argument('recording', help='CSV recording (t,ax,ay,az; s, m/s^2) or bag (rosbag2 '
@@ -84,7 +85,8 @@ def register(subparsers: Any, study_subparsers: Any) -> None:
                    help='flag samples whose |f| departs from 1 g by more (default 0.05)')
     p.add_argument('--every', type=positive_int, default=1, help='print every N-th sample')
     p.add_argument('-o', '--output', help='write CSV here instead of printing')
-    p.set_defaults(handler=_attitude, file_outputs=frozenset({'output'}))
+    p.set_defaults(handler=_attitude, file_outputs=frozenset({'output'}),
+                   output_suffixes={'output': ('.csv',)})
 
     p = subparsers.add_parser('plot-calibration', help='plot a calibration file (PNG)')
     p.add_argument('calibration', help='calibration YAML written by calibrate/finish')

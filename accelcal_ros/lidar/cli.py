@@ -52,7 +52,8 @@ def register(subparsers: argparse._SubParsersAction,
     p.add_argument('--skip-bad-files', action='store_true',
                    help='drop positions whose files cannot be read instead of failing')
     p.add_argument('--plot', metavar='PNG', help='also draw the per-position errors')
-    p.set_defaults(handler=_boresight, file_outputs=frozenset({'output'}))
+    p.set_defaults(handler=_boresight, file_outputs=frozenset({'output'}),
+                   output_suffixes={'output': ('.yaml', '.yml')})
 
     g = subparsers.add_parser(
         'georeference', help='place LiDAR points in the navigation frame or a map CRS (UTM)',

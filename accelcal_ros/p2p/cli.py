@@ -304,7 +304,7 @@ def _register_p2p_bag(subparsers):
                    help='emitter grey level (default: as the node)')
     add_stamp_argument(p)
     p.add_argument('-o', '--output', required=True, help='CSV of poses to write')
-    p.set_defaults(handler=_p2p_bag_main)
+    p.set_defaults(handler=_p2p_bag_main, output_suffixes={'output': ('.csv',)})
 
 
 def _p2p_bag_main(args):

@@ -42,7 +42,8 @@ def register(subparsers: argparse._SubParsersAction,
                    help='reference camera (carries the IMU; default: first name in order)')
     p.add_argument('--level-board', action='store_true',
                    help='take the board as level instead of estimating its tilt')
-    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}))
+    p.set_defaults(handler=_calibrate, file_outputs=frozenset({'output'}),
+                   output_suffixes={'output': ('.yaml', '.yml')})
 
     s = study_subparsers.add_parser(
         'rig', help='rig calibration accuracy against the number of poses',
