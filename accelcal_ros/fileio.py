@@ -277,6 +277,8 @@ def _directory_files(path: str) -> Tuple[Set[str], Set[Tuple[int, int]]]:
         except OSError:
             continue
         for entry in entries:
+            if len(real_paths) >= DIRECTORY_FILES_LISTED:
+                break
             try:
                 if entry.is_dir():
                     if depth < 1:

@@ -254,22 +254,22 @@ def test_a_bag_whose_storage_is_a_link_keeps_it(tmp_path, capsys, monkeypatch):
     write_imu_bag(tmp_path / 'bag', 'mcap', np.arange(40) * 0.01,
                   np.tile([0.0, 0.1, 9.8], (40, 1)))
     storage = next(f for f in os.listdir('bag') if f.endswith('.mcap'))
-    os.rename(f'bag/{storage}', 'store.mcap')
-    os.symlink('../store.mcap', f'bag/{storage}')
+    # the target named like an output these commands write: only the link check refuses
+    os.rename(f'bag/{storage}', 'store.csv')
+    os.symlink('../store.csv', f'bag/{storage}')
     os.mkdir('hard')
-    os.link('store.mcap', f'hard/{storage}')
+    os.link('store.csv', f'hard/{storage}')
     (tmp_path / 'hard' / 'metadata.yaml').write_bytes((tmp_path / 'bag' / 'metadata.yaml')
                                                       .read_bytes())
     _calibration('cal.yaml')
-    before = (tmp_path / 'store.mcap').read_bytes()
-    for args in (['attitude', 'bag', '-o', 'store.mcap'],
-                 ['apply', '--calibration', 'cal.yaml', 'hard', '-o', 'store.mcap'],
-                 ['attitude', 'hard', '-o', f'bag/{storage}']):
+    before = (tmp_path / 'store.csv').read_bytes()
+    for args in (['attitude', 'bag', '-o', 'store.csv'],
+                 ['apply', '--calibration', 'cal.yaml', 'hard', '-o', 'store.csv']):
         status = main(args)
         err = capsys.readouterr().err.strip().splitlines()
         assert status == 1 and len(err) == 1, (args, err)
-        assert 'input of the command' in err[0] or 'a directory the command reads' in err[0], err
-    assert (tmp_path / 'store.mcap').read_bytes() == before
+        assert 'a file of' in err[0] and 'through a link' in err[0], err
+    assert (tmp_path / 'store.csv').read_bytes() == before
 
 
 def _calibration(path):

@@ -58,7 +58,7 @@ from accelcal_ros.rosutil.drops import DropCounter
 from accelcal_ros.rosutil.params import ParameterSet
 from accelcal_ros.rosutil.qos import imu_subscription_qos
 from accelcal_ros.rosutil.runner import run
-from accelcal_ros.rosutil.stamps import JUMPED_BACK, StampOrder, USE
+from accelcal_ros.rosutil.stamps import JUMPED_BACK, StampOrder, TIME_JUMP_BACK_S, USE
 from accelcal_ros.sensor.calibration_file import load_calibration
 from accelcal_ros.sensor.datasheet import datasheet_noise_std_g
 from accelcal_ros.sensor.model import SensorModel
@@ -364,6 +364,9 @@ class AttitudeNode(Node):
     def _on_odometry(self, msg):
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         twist = msg.twist.twist
+        last = self._odometry.last_t
+        if last is not None and last - stamp >= TIME_JUMP_BACK_S:   # a bag played again
+            self._odometry.reset()
         try:
             self._odometry.add(stamp, twist.linear.x, twist.angular.z)
         except AccelcalError as exc:
@@ -389,6 +392,9 @@ class AttitudeNode(Node):
             return False
         self.filter.reset()
         self.legacy.reset()
+        self._gyro_sample = None
+        if self._odometry is not None:   # it refused every message until then
+            self._odometry.reset()
         return True
 
     def _skip(self, reason):

@@ -203,7 +203,8 @@ def _apply_to_bag(args, model):
 
     with open_bag(args.recording, args.stamp) as bag:
         topic = bag.select_topic(args.topic, ('sensor_msgs/Imu',))
-        fmt = format_for(args.output, None if str(args.output).endswith('.bag') else args.format)
+        fmt = format_for(args.output,
+                         None if str(args.output).lower().endswith('.bag') else args.format)
         if bag.is_ros1 != (fmt == 'ros1'):
             raise InputError(f'{args.recording} is a {"ROS 1" if bag.is_ros1 else "rosbag2"} '
                              'bag: write the same kind (-o NAME.bag for ROS 1, a directory for '

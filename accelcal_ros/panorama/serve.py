@@ -60,10 +60,11 @@ LIVE_RATE_BOUNDS = (5.0, 60.0)
 """Live, a tab is drawn at most at the frame sets' rate, kept within these (Hz)."""
 MAX_CONTROL_BYTES = 4096
 """Longest control message (a JSON object of a few numbers is under 100 bytes)."""
-MAX_CONTROL_RATE = (400, 1.0)
+MAX_CONTROL_RATE = (2000, 1.0)
 """At most this many control messages per this many seconds from one tab (a drag sends
-one per animation frame, the acks one per frame): a tab flooding its socket (176 000
-acks/s cut another tab from 24 to 3 frames/s) is closed with code 1008 and the reason."""
+one per mouse move, up to a 480 Hz display's rate, the acks one per frame): a tab flooding
+its socket (176 000 acks/s cut another tab from 24 to 3 frames/s) is closed with code 1008
+and the reason."""
 SEND_TIMEOUT_S = 10.0
 """A frame the tab has not taken in this long (it acks without reading, its socket's
 buffers full: 4 MB) drops its connection (no close frame would get through either): its

@@ -142,7 +142,7 @@ def set_security_headers(headers: Any) -> None:
 
 class QuietLoopErrors:
     """
-    An asyncio exception handler: the same error once per :data:`LOOP_ERROR_EVERY_S`.
+    An asyncio exception handler: out of file handles, once per :data:`LOOP_ERROR_EVERY_S`.
 
     At the file-handle limit asyncio logged ``socket.accept() out of system resource``
     with its traceback for every attempt: 9069 tracebacks (54 415 lines) in 7 s under 1100
@@ -154,8 +154,13 @@ class QuietLoopErrors:
         self._count: Dict[str, int] = {}
 
     def __call__(self, loop: Any, context: Dict[str, Any]) -> None:
-        """Print ``context``'s message (and its exception, one line) at most so often."""
+        """Print an out-of-file-handles error at most so often; others as asyncio does."""
+        import errno
+
         error = context.get('exception')
+        if not (isinstance(error, OSError) and error.errno in (errno.EMFILE, errno.ENFILE)):
+            loop.default_exception_handler(context)
+            return
         key = str(context.get('message', ''))
         self._count[key] = self._count.get(key, 0) + 1
         now = time.monotonic()
@@ -164,7 +169,7 @@ class QuietLoopErrors:
         self._last[key] = now
         count, self._count[key] = self._count[key], 0
         detail = f': {type(error).__name__}: {error}' if error is not None else ''
-        print(f'accelcal serve: {key}{detail} ({count} time{"s" if count > 1 else ""})',
+        print(f'view server: {key}{detail} ({count} time{"s" if count > 1 else ""})',
               file=sys.stderr)
 
 

@@ -64,7 +64,9 @@ def check_view_name(name: Any) -> str:
 
 def repeated_names_reason(names: List[str]) -> Optional[str]:
     """Return why ``names`` cannot all be views (a name listed twice, named once), or None."""
-    repeated = sorted({n for n in names if names.count(n) > 1})
+    from collections import Counter
+
+    repeated = sorted(n for n, count in Counter(names).items() if count > 1)
     if not repeated:
         return None
     return f'a view name is listed twice: {listed(repeated)}'

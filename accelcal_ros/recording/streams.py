@@ -77,7 +77,9 @@ def check_stamps(topic: str, header_s: np.ndarray, receive_s: np.ndarray, stamp:
         back = int((steps < 0).sum())
         if back:
             warnings.append(f'{topic}: time goes backwards {back} times (largest '
-                            f'{-float(steps.min()):.6f} s); messages are taken in time order')
+                            f'{-float(steps.min()):.6f} s); '
+                            + ('images are used in recording order' if repeats else
+                               'messages are taken in time order'))
         same = int((steps == 0).sum())
         if repeats and same:
             warnings.append(f'{topic}: {same} of {len(used)} messages repeat the previous time '

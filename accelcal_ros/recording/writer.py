@@ -53,13 +53,13 @@ def full_type(msgtype: str) -> str:
 
 def format_for(path: PathLike, fmt: Optional[str] = None) -> str:
     """Return the bag format for an output path: ``ros1`` for ``*.bag``, else ``fmt`` or mcap."""
-    if str(path).endswith('.bag'):
+    if str(path).lower().endswith('.bag'):
         if fmt not in (None, 'ros1'):
             raise InputError(f'{path}: a .bag file is a ROS 1 bag, not {fmt}')
         return 'ros1'
     if fmt == 'ros1':
         raise InputError(f'{path}: a ROS 1 bag must end in .bag')
-    if str(path).rstrip('/').endswith(('.db3', '.mcap')):   # was a folder y.db3/y.db3.mcap
+    if str(path).rstrip('/').lower().endswith(('.db3', '.mcap')):   # was a folder y.db3/y.db3.mcap
         raise InputError(f'{path}: a rosbag2 bag is a directory (its storage file is made '
                          'inside it): name it without .db3 or .mcap; --format picks the '
                          'storage (mcap or sqlite3)')

@@ -52,6 +52,19 @@ class RigCapture:
         self._next = len([d for d in os.listdir(directory) if d.startswith('pose')])
 
     # -- input ----------------------------------------------------------------------
+    def restart_clock(self) -> None:
+        """
+        Forget the samples and frames of before a jump back in time (a bag played again).
+
+        Kept, they were written first into the next pose's ``imu.csv`` (times not
+        increasing: the whole calibration then failed to read it); captured poses stay.
+        """
+        self._detector = StillnessDetector(self._detector.thresholds, accel_unit_m_s2=1.0)
+        self._imu.clear()
+        self._frames.clear()
+        self._searched.clear()
+        self._captured_segment = None
+
     def add_imu(self, t_s: float, accel_m_s2: Sequence[float]) -> Optional[str]:
         """Feed one accelerometer sample; return the new pose's name if one was captured."""
         self._detector.add(t_s, accel_m_s2)

@@ -126,6 +126,8 @@ class RigCalibrationNode(Node):
                 return
             order = self._stamp_order.check(t)
             name = None
+            if order == JUMPED_BACK:
+                self._capture.restart_clock()
             if order is USE or order == JUMPED_BACK:
                 name = self._capture.add_imu(t, accel)
                 self._session_samples += 1

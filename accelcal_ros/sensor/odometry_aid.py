@@ -60,6 +60,17 @@ class OdometryAid:
         self._r: Deque[float] = deque()
         self.used = 0
 
+    @property
+    def last_t(self) -> Optional[float]:
+        """Return the time (s) of the newest sample kept, or None."""
+        return self._t[-1] if self._t else None
+
+    def reset(self) -> None:
+        """Forget every sample (the clock jumped back: a bag played again)."""
+        self._t.clear()
+        self._v.clear()
+        self._r.clear()
+
     def add(self, t_s: float, speed_m_s: float, yaw_rate_rad_s: float) -> None:
         """Add one odometry sample; InputError (not used) if it goes back in time or is NaN."""
         t, v, r = float(t_s), float(speed_m_s), float(yaw_rate_rad_s)

@@ -165,3 +165,25 @@ def test_progress_bar_only_on_a_terminal(monkeypatch):
         bar.update(5)
     assert 'reading [' in stream.getvalue() and '100% 10/10' not in stream.getvalue()
     assert '50%' in stream.getvalue()
+
+
+def test_an_imu_topic_that_reads_off_1_g_without_calibration_is_warned_about(tmp_path):
+    """
+    Warn when a bag's raw IMU topic drives the attitude with no ``--calibration``.
+
+    p2p over the sample bag was 10 deg of yaw and 1.1 m off with status 0 and no word.
+    """
+    from accelcal_ros.recording.sim_bags import write_imu_bag
+    from accelcal_ros.recording.streams import attitude_series
+    from accelcal_ros.sensor.model import SensorModel
+
+    t = np.arange(200) * 0.01
+    for scale, warned in ((0.9, True), (1.0, False)):
+        path = write_imu_bag(tmp_path / f'b{scale}', 'mcap', t,
+                             np.tile([0.0, 0.0, 9.80665 * scale], (200, 1)))
+        with BagReader(path) as bag:
+            *_, warnings = attitude_series(bag, None, '/imu/data_raw')
+            assert any('look uncalibrated (median |a| 0.900 g' in w for w in warnings) == warned
+            *_, calibrated = attitude_series(bag, None, '/imu/data_raw',
+                                             SensorModel.identity())
+            assert not any('uncalibrated' in w for w in calibrated)

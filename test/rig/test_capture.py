@@ -52,3 +52,24 @@ def test_manual_capture_needs_a_still_rig(tmp_path):
     _feed(capture, renderer, pose, 5.0, np.random.default_rng(2))
     ok, message = capture.capture()
     assert ok and 'pose00' in message and 'cam0' in message
+
+
+def test_a_pose_after_the_clock_jumps_back_reads_back(tmp_path):
+    """
+    Samples from before a jump back (a bag played again) stay out of the next pose.
+
+    Kept, they were written first into its imu.csv (times not increasing), and the whole
+    calibration then failed to read that pose.
+    """
+    from accelcal_ros.sensor.recording import load_recording
+
+    poses = plan_poses(TRUTH, 2)
+    renderer = Renderer(TRUTH)
+    rng = np.random.default_rng(3)
+    capture = RigCapture(str(tmp_path), TRUTH.names, TRUTH.board, min_still_s=0.6)
+    assert _feed(capture, renderer, poses[0], 100.0, rng) == ['pose00']
+    capture.restart_clock()   # the node's answer to StampOrder's JUMPED_BACK
+    assert _feed(capture, renderer, poses[1], 99.0, rng) == ['pose01']
+    t, _ = load_recording(str(tmp_path / 'pose01' / 'imu.csv'))
+    assert t[0] >= 99.0 and t[-1] < 100.6
+    assert len(scan_directory(str(tmp_path)).poses) == 2
